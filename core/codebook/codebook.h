@@ -1,0 +1,61 @@
+#pragma once
+// Codebook: k-means cluster centres of SHOT descriptors, and codeword activation
+// (k nearest codewords, or every codeword within a cutoff distance).
+#include <cstdint>
+#include <vector>
+
+#include "core/common/types.h"
+
+namespace ism {
+
+struct KMeansParams {
+  int k = 300;               // the seed: 300 for the global codebook, 150 per category
+  int max_iterations = 30;
+  float tolerance = 1e-4f;   // stop when the mean distance improves by less (relative)
+  // Cluster a random subset when there are more descriptors than this (0 = all).
+  int max_samples = 60000;
+  uint32_t seed = 42;
+};
+
+struct KMeansResult {
+  DescriptorMatrix centers;
+  double mean_distance = 0;  // mean descriptor-to-centre distance (the seed saw ~0.25)
+  int iterations = 0;
+};
+
+// k-means++ seeding, Lloyd iterations. k is clamped to the number of distinct samples.
+KMeansResult kmeans(const DescriptorMatrix& data, const KMeansParams& params);
+
+enum class ActivationStrategy { kKnn, kCutoff };
+
+struct ActivationParams {
+  ActivationStrategy strategy = ActivationStrategy::kKnn;
+  int k = 1;             // kKnn: codewords per descriptor
+  float cutoff = 0.25f;  // kCutoff: every codeword within this Euclidean distance
+};
+
+struct Activation {
+  int keypoint;
+  int codeword;
+  float distance;  // Euclidean, descriptor to codeword
+};
+
+class Codebook {
+ public:
+  Codebook() = default;
+  explicit Codebook(DescriptorMatrix centers);
+
+  int size() const { return static_cast<int>(centers_.rows()); }
+  int dim() const { return static_cast<int>(centers_.cols()); }
+  const DescriptorMatrix& centers() const { return centers_; }
+
+  // Activations grouped by keypoint in keypoint order, nearest codeword first. Search is exact
+  // and brute force (one GEMM): with a few hundred 352-d codewords no tree beats it.
+  std::vector<Activation> activate(const DescriptorMatrix& descriptors, const ActivationParams& params) const;
+
+ private:
+  DescriptorMatrix centers_;
+  Eigen::VectorXf squared_norms_;  // of centers_' rows
+};
+
+}  // namespace ism

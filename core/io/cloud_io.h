@@ -1,0 +1,48 @@
+#pragma once
+// Reading scenes: PCD and PLY clouds (organized or not, with or without colour) and 16-bit
+// depth images with intrinsics. NaN/Inf points are dropped. Every failure throws ism::Error
+// whose message names the file (or "request") and the problem.
+#include <cstdint>
+#include <string>
+
+#include "core/common/types.h"
+
+namespace ism {
+
+struct DepthIntrinsics {
+  float fx = 525.0f;
+  float fy = 525.0f;
+  float cx = 319.5f;
+  float cy = 239.5f;
+  // Raw depth units per metre: 1000 for OpenNI millimetres, 5000 for TUM RGB-D PNGs.
+  float depth_scale = 1000.0f;
+};
+
+// .pcd or .ply, chosen by extension (case-insensitive).
+Scene loadCloudFile(const std::string& path);
+
+// Raw row-major uint16 depth (0 = no measurement) -> organized scene in the camera frame
+// (x right, y down, z forward), sensor at the origin.
+Scene depthToScene(const uint16_t* depth, int width, int height, const DepthIntrinsics& intrinsics,
+                   const std::string& source = "depth image");
+
+// A 16-bit single-channel PNG (file or bytes in memory) -> scene, as depthToScene.
+Scene loadDepthPng(const std::string& path, const DepthIntrinsics& intrinsics);
+Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrinsics,
+                     const std::string& source = "depth PNG");
+
+// Packed float32 xyz (and optional packed uint8 rgb) as sent over the wire. width*height must
+// equal the point count when organized (height > 1), else pass width = count, height = 1.
+Scene sceneFromPacked(const float* xyz, size_t count, const uint8_t* rgb, int width, int height,
+                      const std::string& source = "request");
+
+// Writing, for debugging and for the shipped sample scene. savePcd writes binary PCD with the
+// sensor pose as VIEWPOINT; an organized scene is written organized (NaN where no point was
+// kept) so that loading it back restores the pixel indices.
+void savePcd(const Scene& scene, const std::string& path);
+// `colors` (0..255 per channel) is empty for uncoloured points or index-aligned with `points`.
+enum class PlyEncoding { kAscii, kBinary };
+void savePlyPoints(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3i>& colors,
+                   const std::string& path, PlyEncoding encoding = PlyEncoding::kBinary);
+
+}  // namespace ism

@@ -1,0 +1,24 @@
+#pragma once
+// 16-bit single-channel PNG encode/decode in memory (libpng). Depth frames travel as these
+// (TUM RGB-D, OpenNI recordings, the service's PNG input) and the virtual scanner writes them.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace ism {
+
+struct DepthPng {
+  int width = 0;
+  int height = 0;
+  std::vector<uint16_t> pixels;  // row-major, raw sensor units
+};
+
+// Throws Error(kInvalidInput) naming `source` when the bytes are not a PNG, or not a
+// single-channel 16-bit one (the message says what it is instead).
+DepthPng decodeDepthPng16(const std::string& bytes, const std::string& source);
+std::string encodeDepthPng16(const DepthPng& image);
+
+std::string readFileBytes(const std::string& path);  // Error(kNotFound / kIo) naming the file
+void writeFileBytes(const std::string& path, const std::string& bytes);
+
+}  // namespace ism

@@ -1,0 +1,19 @@
+#pragma once
+// The model file: a ModelFile envelope (magic, format version, CRC-32 of the payload) around a
+// serialized ModelData message, both in proto/ism/v1/model.proto so that any language can read
+// a model's metadata. Loading checks magic, version and CRC and throws
+// Error(kCorruptModel / kNotFound / kIo) with a message naming the file and the problem.
+#include <string>
+
+#include "core/model/model.h"
+
+namespace ism {
+
+constexpr uint32_t kModelFormatVersion = 1;
+
+void saveModel(const Model& model, const std::string& path);
+Model loadModel(const std::string& path);
+std::string serializeModel(const Model& model);
+Model parseModel(const std::string& bytes, const std::string& source);
+
+}  // namespace ism

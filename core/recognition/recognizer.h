@@ -1,0 +1,79 @@
+#pragma once
+// Recognition: features -> codeword activations -> weighted votes in a 3D Hough space per
+// category -> every local maximum above the threshold -> box selection -> hypotheses.
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "core/common/types.h"
+#include "core/frontend/frontend.h"
+#include "core/model/model.h"
+
+namespace ism {
+
+struct RecognitionOptions {
+  Strategy strategy;                    // codebook type, activation, weighting: per call
+  std::vector<std::string> categories;  // empty = every category of the model
+  // Overrides the model's leave-one-out threshold for the chosen strategy when set.
+  std::optional<float> min_score;
+  int max_hypotheses = 0;               // 0 = no limit; best scores first
+  bool box_selection = true;            // false: keep hypotheses that fail the box test too
+  bool return_keypoints = false;        // fill Hypothesis::support_keypoints
+  bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)
+  ShouldStop should_stop;               // polled between stages and in long loops
+};
+
+struct Hypothesis {
+  std::string category;
+  float score = 0;       // summed vote weight around the centre
+  float threshold = 0;   // the threshold the score was compared with
+  Eigen::Vector3f center = Eigen::Vector3f::Zero();  // weighted mean of the votes in the peak
+  OrientedBox box;       // PCA box of the supporting keypoints
+  int support = 0;       // keypoints that voted into the peak
+  Eigen::Vector3f support_centroid = Eigen::Vector3f::Zero();
+  bool passed_selection = true;  // box volume within range and longest edge below the maximum
+  std::vector<Eigen::Vector3f> support_keypoints;  // when asked for
+};
+
+struct Vote {
+  Eigen::Vector3f position;  // where the vote lands (scene frame)
+  float weight;
+  int keypoint;              // index into Features
+  int category;              // index into Model::categories
+};
+
+struct RecognitionResult {
+  std::vector<Hypothesis> hypotheses;  // passed selection, best first
+  std::vector<Hypothesis> rejected;    // above threshold but failed box selection
+  StageTimings timings;
+  size_t input_points = 0;
+  size_t surface_points = 0;
+  size_t keypoints = 0;
+  std::vector<Eigen::Vector3f> keypoint_positions;  // when keep_votes
+  std::vector<Vote> votes;                          // when keep_votes
+};
+
+// Throws Error(kNotFound) for an unknown category, Error(kInvalidInput) for a strategy the
+// model was not trained for (e.g. separated codebook missing) or a scene with no points left.
+RecognitionResult recognize(const Model& model, const Scene& scene, const RecognitionOptions& options);
+
+// --- The stages, exposed for training (leave-one-out) and evaluation. ---
+
+// Votes of one category's ISM for already extracted features.
+std::vector<Vote> castVotes(const Model& model, int category_index, const Features& features,
+                            const std::vector<Activation>& activations, const Strategy& strategy);
+
+// Local maxima of the Hough space of one category's votes above `threshold`.
+std::vector<Hypothesis> findPeaks(const std::vector<Vote>& votes, const Features& features,
+                                  const CategoryModel& category, float threshold);
+
+// Summed weight of the votes inside the cube of edge bin_size centred at `center`: the score a
+// hypothesis there would get (used for the leave-one-out thresholds).
+float scoreAt(const std::vector<Vote>& votes, const Eigen::Vector3f& center, float bin_size);
+
+// PCA oriented box of points.
+OrientedBox fitOrientedBox(const std::vector<Eigen::Vector3f>& points);
+
+bool passesBoxSelection(const OrientedBox& box, const BoxStats& stats);
+
+}  // namespace ism

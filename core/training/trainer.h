@@ -1,0 +1,68 @@
+#pragma once
+// Training: meshes -> virtual scans -> front end -> codebook(s) -> votes -> leave-one-out
+// thresholds and box statistics -> Model.
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/model/model.h"
+#include "core/scanner/scanner.h"
+
+namespace ism {
+
+struct TrainingMesh {
+  std::string category;
+  std::string path;
+  MeshPlacement placement;
+  std::string credit;  // creator and licence, stored in the model's provenance
+};
+
+struct TrainingParams {
+  FrontEndParams front_end;  // smoothing is stored for scenes; training scans are not smoothed
+  ViewRingParams views;      // 12 views, as in the seed
+  CameraIntrinsics intrinsics;
+  NoiseParams noise;
+  bool global_codebook = true;
+  bool separated_codebooks = true;
+  KMeansParams global_kmeans;                          // k = 300
+  KMeansParams separated_kmeans{150, 30, 1e-4f, 60000, 42};
+  ActivationParams knn{ActivationStrategy::kKnn, 1, 0.25f};
+  ActivationParams cutoff{ActivationStrategy::kCutoff, 1, 0.25f};
+  std::map<std::string, float> bin_sizes;  // per category; others get default_bin_size
+  float default_bin_size = 0.1f;
+  int threads = 0;  // 0 = all cores
+  // Progress lines ("scanning couch 3/5 ...") with timings; may be empty.
+  std::function<void(const std::string&)> progress;
+  std::string command;  // recorded in provenance
+};
+
+// Seed bin sizes: ~10 cm for chairs, ~20 cm for tables and couches.
+float defaultBinSize(const std::string& category);
+
+// One scan's features, as used by training and by evaluation on synthetic scans.
+struct TrainingScan {
+  std::string category;
+  int model_index;  // which mesh of the category
+  Features features;
+  Eigen::Vector3f object_center;  // true centre (world frame)
+  OrientedBox keypoint_box;
+};
+
+// Renders and describes every mesh from every view.
+std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
+
+// Everything after scanning (codebooks, votes, thresholds, boxes); exposed for evaluation.
+Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<std::string>& categories,
+                     const TrainingParams& params);
+
+Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
+
+// Manifest: TSV with header "category path [width_m depth_m height_m up rotation credit]".
+std::vector<TrainingMesh> readManifest(const std::string& path);
+// Folders: ROOT/<category>/*.{obj,off,ply}, sizes from defaultCategorySize().
+std::vector<TrainingMesh> meshesFromFolders(const std::string& root);
+// Typical real size (w, d, h in m) of a category, for CAD meshes normalised to a unit cube.
+Eigen::Vector3f defaultCategorySize(const std::string& category);
+
+}  // namespace ism
