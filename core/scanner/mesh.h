@@ -1,0 +1,38 @@
+#pragma once
+// Triangle meshes for the virtual scanner: loading (OBJ with polygons of any size, OFF, PLY)
+// and putting a CAD mesh into the world at real size, +z up.
+#include <string>
+#include <vector>
+
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+
+namespace ism {
+
+struct Mesh {
+  std::vector<Eigen::Vector3f> vertices;
+  std::vector<Eigen::Vector3i> triangles;  // polygons are fan-triangulated on load
+  Eigen::AlignedBox3f bounds() const;
+};
+
+// Chosen by extension (.obj, .off, .ply). Throws ism::Error naming the file and the problem.
+Mesh loadMesh(const std::string& path);
+
+enum class UpAxis { kY, kZ };
+
+struct MeshPlacement {
+  UpAxis up = UpAxis::kY;  // PSB and Sweet Home 3D meshes are Y-up
+  // Applied first, in the mesh's own frame (Sweet Home 3D's modelRotation).
+  Eigen::Matrix3f pre_rotation = Eigen::Matrix3f::Identity();
+  // Real size (m) after the up-axis change: x = width, y = depth, z = height. A zero
+  // component is derived from the others; all zero keeps the mesh's own size.
+  Eigen::Vector3f size = Eigen::Vector3f::Zero();
+  bool uniform = false;  // true: scale by the height only, keep proportions
+};
+
+// Returns the mesh +z up, scaled, its bounding box centred on x=y=0 and standing on z=0.
+Mesh placeMesh(const Mesh& mesh, const MeshPlacement& placement);
+
+Mesh transformed(const Mesh& mesh, const Eigen::Isometry3f& pose);
+
+}  // namespace ism
