@@ -1,0 +1,316 @@
+#include "core/frontend/frontend.h"
+
+#include <pcl/common/common.h>
+#include <pcl/features/boundary.h>
+#include <pcl/features/normal_3d_omp.h>
+#include <pcl/features/shot_lrf_omp.h>
+#include <pcl/features/shot_omp.h>
+#include <pcl/filters/voxel_grid.h>
+#include <pcl/search/kdtree.h>
+#include <pcl/surface/mls.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "core/common/error.h"
+
+namespace ism {
+namespace {
+
+constexpr int kShotLength = 352;
+
+void requirePositive(float value, const char* name) {
+  if (!(std::isfinite(value) && value > 0.0f)) {
+    throw Error(ErrorCode::kInvalidInput, std::string("front end parameter ") + name + " = " +
+                                              std::to_string(value) + " must be positive and finite");
+  }
+}
+
+// PCL filters and features take shared pointers; these views let them read the caller's cloud
+// without copying it (the caller outlives the call).
+template <class PointCloudT>
+typename PointCloudT::ConstPtr borrow(const PointCloudT& cloud) {
+  return typename PointCloudT::ConstPtr(&cloud, [](const PointCloudT*) {});
+}
+
+// pcl::VoxelGrid numbers voxels with a 32-bit index over the bounding box and silently returns
+// its input when that overflows (a room at a fine leaf size). Voxel boundaries are absolute
+// multiples of the leaf, so cutting the cloud into slabs along those boundaries and filtering
+// each slab alone gives exactly the voxels of one big grid.
+void voxelCentroids(const Cloud::ConstPtr& cloud, const pcl::IndicesPtr& indices, float leaf, XyzCloud& out) {
+  Eigen::Vector4f min_p, max_p;
+  pcl::getMinMax3D(*cloud, *indices, min_p, max_p);
+  const float inverse_leaf = 1.0f / leaf;
+  Eigen::Array3d voxels;
+  int widest = 0;
+  for (int axis = 0; axis < 3; ++axis) {
+    const double lo = std::floor(min_p[axis] * inverse_leaf), hi = std::floor(max_p[axis] * inverse_leaf);
+    // Beyond this even one axis' voxel number does not fit PCL's int arithmetic.
+    constexpr double kMaxVoxelCoordinate = std::numeric_limits<int>::max() / 2.0;
+    if (std::abs(lo) > kMaxVoxelCoordinate || std::abs(hi) > kMaxVoxelCoordinate) {
+      throw Error(ErrorCode::kInvalidInput,
+                  "downsample.leaf_size = " + std::to_string(leaf) + " is too small for coordinates up to " +
+                      std::to_string(std::max(std::abs(min_p[axis]), std::abs(max_p[axis]))) + " m");
+    }
+    voxels[axis] = hi - lo + 1.0;
+    if (voxels[axis] > voxels[widest]) widest = axis;
+  }
+  if (voxels.prod() <= static_cast<double>(std::numeric_limits<int32_t>::max())) {
+    pcl::VoxelGrid<PointT> grid;
+    grid.setInputCloud(cloud);
+    grid.setIndices(indices);
+    grid.setLeafSize(leaf, leaf, leaf);
+    grid.setDownsampleAllData(false);  // colour is not used downstream; averaging it costs time
+    Cloud centroids;
+    grid.filter(centroids);
+    for (const auto& p : centroids) out.push_back(pcl::PointXYZ(p.x, p.y, p.z));
+    return;
+  }
+  const double slab_voxels = std::max(1.0, std::floor(std::numeric_limits<int32_t>::max() /
+                                                       (voxels.prod() / voxels[widest])));
+  const double first_voxel = std::floor(min_p[widest] * inverse_leaf);
+  const size_t slabs = static_cast<size_t>(std::ceil(voxels[widest] / slab_voxels));
+  std::vector<pcl::IndicesPtr> slab_indices(slabs);
+  for (auto& s : slab_indices) s.reset(new pcl::Indices);
+  for (int index : *indices) {
+    const double voxel = std::floor((*cloud)[index].data[widest] * inverse_leaf) - first_voxel;
+    slab_indices[std::min(slabs - 1, static_cast<size_t>(voxel / slab_voxels))]->push_back(index);
+  }
+  for (const auto& s : slab_indices) {
+    if (!s->empty()) voxelCentroids(cloud, s, leaf, out);
+  }
+}
+
+// Counts at most `enough` neighbours: the early exit keeps the check cheap at large radii.
+bool hasEnoughNeighbours(const pcl::search::KdTree<pcl::PointNormal>& tree, int index, float radius, int enough) {
+  pcl::Indices neighbours;
+  std::vector<float> distances;
+  return tree.radiusSearch(index, radius, neighbours, distances, static_cast<unsigned int>(enough)) >= enough;
+}
+
+bool isFiniteFrame(const pcl::ReferenceFrame& frame) {
+  for (float v : frame.rf) {
+    if (!std::isfinite(v)) return false;
+  }
+  return true;
+}
+
+}  // namespace
+
+XyzCloud::Ptr downsample(const Cloud& cloud, const DownsampleParams& params) {
+  requirePositive(params.leaf_size, "downsample.leaf_size");
+  XyzCloud::Ptr out(new XyzCloud);
+  if (cloud.empty()) return out;
+  pcl::IndicesPtr all(new pcl::Indices(cloud.size()));
+  for (size_t i = 0; i < cloud.size(); ++i) (*all)[i] = static_cast<int>(i);
+  voxelCentroids(borrow(cloud), all, params.leaf_size, *out);
+  out->width = static_cast<uint32_t>(out->size());
+  out->height = 1;
+  out->is_dense = true;
+  return out;
+}
+
+XyzCloud::Ptr smooth(const XyzCloud& cloud, const SmoothingParams& params) {
+  requirePositive(params.radius, "smoothing.radius");
+  if (params.polynomial_order < 0) {
+    throw Error(ErrorCode::kInvalidInput,
+                "front end parameter smoothing.polynomial_order = " + std::to_string(params.polynomial_order) +
+                    " must be >= 0");
+  }
+  XyzCloud::Ptr out(new XyzCloud);
+  if (cloud.empty()) return out;
+  pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointXYZ> mls;
+  mls.setInputCloud(borrow(cloud));
+  mls.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
+  mls.setSearchRadius(params.radius);
+  mls.setPolynomialOrder(params.polynomial_order);
+  mls.setComputeNormals(false);  // normals are estimated afterwards at their own radius
+  mls.setNumberOfThreads(0);     // 0 = all cores
+  mls.process(*out);
+  // A fit can degenerate to NaN on near-collinear neighbourhoods; such points carry no surface.
+  out->erase(std::remove_if(out->begin(), out->end(), [](const pcl::PointXYZ& p) { return !pcl::isFinite(p); }),
+             out->end());
+  return out;
+}
+
+Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params, const Eigen::Vector3f& viewpoint) {
+  requirePositive(params.radius, "normals.radius");
+  Surface::Ptr surface(new Surface);
+  if (cloud.empty()) return surface;
+  pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> estimator;
+  estimator.setInputCloud(borrow(cloud));
+  // PCA does not need neighbours sorted by distance; skipping the sort is measurably faster.
+  estimator.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>(false)));
+  estimator.setRadiusSearch(params.radius);
+  estimator.setViewPoint(viewpoint.x(), viewpoint.y(), viewpoint.z());
+  estimator.setNumberOfThreads(0);
+  pcl::PointCloud<pcl::Normal> normals;
+  estimator.compute(normals);
+  surface->reserve(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    const pcl::Normal& n = normals[i];
+    if (!std::isfinite(n.normal_x) || !std::isfinite(n.normal_y) || !std::isfinite(n.normal_z)) continue;
+    pcl::PointNormal p;
+    p.x = cloud[i].x;
+    p.y = cloud[i].y;
+    p.z = cloud[i].z;
+    p.normal_x = n.normal_x;
+    p.normal_y = n.normal_y;
+    p.normal_z = n.normal_z;
+    p.curvature = n.curvature;
+    surface->push_back(p);
+  }
+  return surface;
+}
+
+std::vector<int> detectBoundaryKeypoints(const Surface& surface, const KeypointParams& params) {
+  requirePositive(params.radius, "keypoints.radius");
+  requirePositive(params.angle_threshold, "keypoints.angle_threshold");
+  std::vector<int> keypoints;
+  if (surface.empty()) return keypoints;
+  pcl::search::KdTree<pcl::PointNormal> tree(/*sorted=*/false);
+  tree.setInputCloud(borrow(surface));
+  // pcl::BoundaryEstimation has no parallel variant; its per-point test is public and reads
+  // only its arguments, so the same test runs here over all cores.
+  pcl::BoundaryEstimation<pcl::PointNormal, pcl::PointNormal, pcl::Boundary> estimator;
+  std::vector<uint8_t> is_boundary(surface.size(), 0);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(surface.size()); ++i) {
+    pcl::Indices neighbours;
+    std::vector<float> distances;
+    if (tree.radiusSearch(static_cast<pcl::index_t>(i), params.radius, neighbours, distances) == 0) continue;
+    Eigen::Vector4f u, v;
+    estimator.getCoordinateSystemOnPlane(surface[i], u, v);
+    is_boundary[i] = estimator.isBoundaryPoint(surface, static_cast<int>(i), neighbours, u, v, params.angle_threshold);
+  }
+  for (size_t i = 0; i < surface.size(); ++i) {
+    if (is_boundary[i]) keypoints.push_back(static_cast<int>(i));
+  }
+  return keypoints;
+}
+
+Features describe(const Surface& surface, const std::vector<int>& keypoints, const ShotParams& params) {
+  requirePositive(params.radius, "shot.radius");
+  Features features;
+  features.descriptors.resize(0, kShotLength);
+  if (keypoints.empty()) return features;
+  for (int k : keypoints) {
+    if (k < 0 || static_cast<size_t>(k) >= surface.size()) {
+      throw Error(ErrorCode::kInvalidInput, "keypoint index " + std::to_string(k) + " is outside the surface of " +
+                                                std::to_string(surface.size()) + " points");
+    }
+  }
+  const auto view = borrow(surface);
+  // One tree serves the neighbour count, the LRF and SHOT (PCL rebuilds a tree only when its
+  // input cloud changes).
+  pcl::search::KdTree<pcl::PointNormal>::Ptr tree(new pcl::search::KdTree<pcl::PointNormal>);
+  tree->setInputCloud(view);
+
+  // PCL's LRF needs 5 support points; fewer than min_neighbours gives an unstable frame whose
+  // votes would be noise, so such keypoints are dropped before any work is spent on them.
+  pcl::IndicesPtr supported(new pcl::Indices);
+  supported->reserve(keypoints.size());
+  for (int k : keypoints) {
+    if (hasEnoughNeighbours(*tree, k, params.radius, std::max(params.min_neighbours, 1))) supported->push_back(k);
+  }
+  if (supported->empty()) return features;
+
+  pcl::SHOTLocalReferenceFrameEstimationOMP<pcl::PointNormal, pcl::ReferenceFrame> lrf_estimator;
+  lrf_estimator.setInputCloud(view);
+  lrf_estimator.setIndices(supported);
+  lrf_estimator.setSearchSurface(view);
+  lrf_estimator.setSearchMethod(tree);
+  lrf_estimator.setRadiusSearch(params.radius);
+  lrf_estimator.setNumberOfThreads(0);
+  pcl::PointCloud<pcl::ReferenceFrame> all_frames;
+  lrf_estimator.compute(all_frames);
+
+  pcl::IndicesPtr framed(new pcl::Indices);
+  pcl::PointCloud<pcl::ReferenceFrame>::Ptr frames(new pcl::PointCloud<pcl::ReferenceFrame>);
+  for (size_t i = 0; i < supported->size(); ++i) {
+    if (!isFiniteFrame(all_frames[i])) continue;
+    framed->push_back((*supported)[i]);
+    frames->push_back(all_frames[i]);
+  }
+  if (framed->empty()) return features;
+
+  // Handing SHOT the frames computed above guarantees that the LRF stored with each descriptor
+  // is the one the descriptor was built in (the votes are expressed in it).
+  pcl::SHOTEstimationOMP<pcl::PointNormal, pcl::PointNormal, pcl::SHOT352> shot;
+  shot.setInputCloud(view);
+  shot.setIndices(framed);
+  shot.setSearchSurface(view);
+  shot.setInputNormals(view);
+  shot.setInputReferenceFrames(frames);
+  shot.setSearchMethod(tree);
+  shot.setRadiusSearch(params.radius);
+  shot.setNumberOfThreads(0);
+  pcl::PointCloud<pcl::SHOT352> descriptors;
+  shot.compute(descriptors);
+
+  features.positions.reserve(framed->size());
+  features.lrfs.reserve(framed->size());
+  features.descriptors.resize(static_cast<Eigen::Index>(framed->size()), kShotLength);
+  Eigen::Index kept = 0;
+  for (size_t i = 0; i < framed->size(); ++i) {
+    const Eigen::Map<const Eigen::Matrix<float, 1, kShotLength>> d(descriptors[i].descriptor);
+    // PCL normalises SHOT to unit length (measured within 1.2e-7 on a Kinect frame); NaN
+    // propagates into the norm, and a zero histogram means no support point fell in any bin.
+    const float norm = d.norm();
+    if (!std::isfinite(norm) || norm == 0.0f) continue;
+    features.descriptors.row(kept++) = d;
+    const pcl::PointNormal& p = surface[(*framed)[i]];
+    features.positions.emplace_back(p.x, p.y, p.z);
+    const pcl::ReferenceFrame& f = (*frames)[i];
+    Eigen::Matrix3f lrf;
+    lrf.row(0) = Eigen::Vector3f(f.x_axis[0], f.x_axis[1], f.x_axis[2]);
+    lrf.row(1) = Eigen::Vector3f(f.y_axis[0], f.y_axis[1], f.y_axis[2]);
+    lrf.row(2) = Eigen::Vector3f(f.z_axis[0], f.z_axis[1], f.z_axis[2]);
+    features.lrfs.push_back(lrf);
+  }
+  features.descriptors.conservativeResize(kept, kShotLength);
+  return features;
+}
+
+FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params, bool apply_smoothing,
+                               StageTimings* timings, const ShouldStop& should_stop) {
+  if (!scene.cloud || scene.cloud->empty()) {
+    throw Error(ErrorCode::kInvalidInput, scene.source + ": the scene has no points");
+  }
+  FrontEndResult result;
+  result.input_points = scene.cloud->size();
+  throwIfStopped(should_stop, "front end start");
+  XyzCloud::Ptr points;
+  {
+    ScopedStage stage(timings, "downsample");
+    points = downsample(*scene.cloud, params.downsample);
+  }
+  throwIfStopped(should_stop, "downsample");
+  if (apply_smoothing && params.smoothing.enabled) {
+    {
+      ScopedStage stage(timings, "smooth");
+      points = smooth(*points, params.smoothing);
+    }
+    throwIfStopped(should_stop, "smooth");
+  }
+  {
+    ScopedStage stage(timings, "normals");
+    result.surface = estimateNormals(*points, params.normals, scene.sensor_origin);
+  }
+  throwIfStopped(should_stop, "normals");
+  std::vector<int> keypoints;
+  {
+    ScopedStage stage(timings, "keypoints");
+    keypoints = detectBoundaryKeypoints(*result.surface, params.keypoints);
+  }
+  result.keypoint_candidates = keypoints.size();
+  throwIfStopped(should_stop, "keypoints");
+  {
+    ScopedStage stage(timings, "describe");
+    result.features = describe(*result.surface, keypoints, params.shot);
+  }
+  return result;
+}
+
+}  // namespace ism

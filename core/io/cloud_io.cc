@@ -1,0 +1,345 @@
+#include "core/io/cloud_io.h"
+
+#include <pcl/PCLPointCloud2.h>
+#include <pcl/exceptions.h>
+#include <pcl/io/pcd_io.h>
+#include <pcl/io/ply_io.h>
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+
+#include "core/common/error.h"
+#include "core/io/depth_png.h"
+
+namespace ism {
+namespace {
+
+bool isFinite(const PointT& p) { return std::isfinite(p.x) && std::isfinite(p.y) && std::isfinite(p.z); }
+
+// Builds a scene from `count` candidate points, keeping the finite ones. `fill(i, point)` writes
+// candidate i. Organized input (height > 1) keeps its size and each kept point's pixel index.
+template <class Fill>
+Scene collectFinite(size_t count, int width, int height, bool has_color, const std::string& source, Fill fill) {
+  Scene scene;
+  scene.source = source;
+  scene.has_color = has_color;
+  const bool organized = height > 1;
+  if (organized) {
+    scene.image_width = width;
+    scene.image_height = height;
+    scene.pixel_index.reserve(count);
+  }
+  auto& points = scene.cloud->points;
+  points.reserve(count);
+  PointT point;
+  for (size_t i = 0; i < count; ++i) {
+    fill(i, point);
+    if (!isFinite(point)) continue;
+    points.push_back(point);
+    if (organized) scene.pixel_index.push_back(static_cast<int>(i));
+  }
+  if (points.empty()) {
+    throw Error(ErrorCode::kInvalidInput,
+                source + ": none of its " + std::to_string(count) + " points is finite (no valid measurement)");
+  }
+  scene.cloud->width = static_cast<uint32_t>(points.size());
+  scene.cloud->height = 1;
+  scene.cloud->is_dense = true;
+  return scene;
+}
+
+const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& blob, const char* name) {
+  for (const auto& field : blob.fields) {
+    if (field.name == name) return &field;
+  }
+  return nullptr;
+}
+
+// Coordinates come as float32 from PCL and most scanners, but as float64 from Open3D and some
+// meshing tools; both are accepted, anything else is refused rather than reinterpreted.
+const pcl::PCLPointField& coordinateField(const pcl::PCLPointCloud2& blob, const char* name,
+                                          const std::string& path) {
+  const auto* field = findField(blob, name);
+  if (field == nullptr) throw Error(ErrorCode::kInvalidInput, path + ": has no '" + name + "' field");
+  if (field->datatype != pcl::PCLPointField::FLOAT32 && field->datatype != pcl::PCLPointField::FLOAT64) {
+    throw Error(ErrorCode::kInvalidInput, path + ": field '" + name + "' has type code " +
+                                              std::to_string(field->datatype) + ", expected float32 or float64");
+  }
+  return *field;
+}
+
+float readCoordinate(const uint8_t* point_data, const pcl::PCLPointField& field) {
+  if (field.datatype == pcl::PCLPointField::FLOAT32) {
+    float value;
+    std::memcpy(&value, point_data + field.offset, sizeof(value));
+    return value;
+  }
+  double value;
+  std::memcpy(&value, point_data + field.offset, sizeof(value));
+  return static_cast<float>(value);
+}
+
+Scene sceneFromBlob(const pcl::PCLPointCloud2& blob, const Eigen::Vector4f& origin,
+                    const Eigen::Quaternionf& orientation, const std::string& path) {
+  const auto& fx = coordinateField(blob, "x", path);
+  const auto& fy = coordinateField(blob, "y", path);
+  const auto& fz = coordinateField(blob, "z", path);
+  // PCD stores colour as a packed 4-byte "rgb"/"rgba" field; PCL's PLY reader packs
+  // red/green/blue(/alpha) properties into the same fields.
+  const pcl::PCLPointField* color = findField(blob, "rgb");
+  if (color == nullptr) color = findField(blob, "rgba");
+  if (color != nullptr && pcl::getFieldSize(color->datatype) != 4) color = nullptr;
+  const size_t count = static_cast<size_t>(blob.width) * blob.height;
+  if (blob.data.size() < count * blob.point_step) {
+    throw Error(ErrorCode::kInvalidInput, path + ": header announces " + std::to_string(count) +
+                                              " points but the data holds fewer");
+  }
+  Scene scene = collectFinite(count, static_cast<int>(blob.width), static_cast<int>(blob.height), color != nullptr,
+                              path, [&](size_t i, PointT& p) {
+                                const uint8_t* data = blob.data.data() + i * blob.point_step;
+                                p.x = readCoordinate(data, fx);
+                                p.y = readCoordinate(data, fy);
+                                p.z = readCoordinate(data, fz);
+                                uint32_t packed = 0;
+                                if (color != nullptr) std::memcpy(&packed, data + color->offset, 4);
+                                // Alpha is meaningless for a scene and often stored as 0.
+                                p.rgba = (packed & 0x00FFFFFFu) | 0xFF000000u;
+                              });
+  scene.sensor_origin = origin.head<3>();
+  scene.sensor_orientation = orientation.normalized();
+  return scene;
+}
+
+std::string lowercaseExtension(const std::string& path) {
+  std::string ext = std::filesystem::path(path).extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+void requireReadableFile(const std::string& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (!std::filesystem::exists(status)) throw Error(ErrorCode::kNotFound, path + ": no such file");
+  if (!std::filesystem::is_regular_file(status)) throw Error(ErrorCode::kIo, path + ": is not a regular file");
+  if (!std::ifstream(path, std::ios::binary)) {
+    throw Error(ErrorCode::kIo, path + ": cannot open for reading: " + std::strerror(errno));
+  }
+}
+
+// PCL 1.13's PCDReader::read crashes on a header without FIELDS or POINTS and returns zeros
+// for one without DATA, so the header is checked on its own first.
+void readPcd(const std::string& path, pcl::PCLPointCloud2& blob, Eigen::Vector4f& origin,
+             Eigen::Quaternionf& orientation) {
+  pcl::PCDReader reader;
+  int version = 0, data_type = 0;
+  unsigned int data_start = 0;
+  if (reader.readHeader(path, blob, origin, orientation, version, data_type, data_start) < 0) {
+    throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD header");
+  }
+  if (blob.fields.empty() || static_cast<size_t>(blob.width) * blob.height == 0 || data_start == 0) {
+    throw Error(ErrorCode::kInvalidInput, path + ": not a PCD file (header lacks FIELDS, POINTS or DATA)");
+  }
+  if (reader.read(path, blob, origin, orientation, version) < 0) {
+    throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (data is truncated or corrupt)");
+  }
+}
+
+template <class PointOut>
+void writePcd(const Scene& scene, const std::string& path) {
+  pcl::PointCloud<PointOut> out;
+  const auto& in = scene.cloud->points;
+  auto convert = [](const PointT& p) {
+    PointOut q;
+    pcl::copyPoint(p, q);
+    return q;
+  };
+  if (!scene.pixel_index.empty()) {
+    PointOut missing;
+    pcl::copyPoint(PointT(), missing);
+    missing.x = missing.y = missing.z = std::numeric_limits<float>::quiet_NaN();
+    out.points.assign(static_cast<size_t>(scene.image_width) * scene.image_height, missing);
+    for (size_t i = 0; i < in.size(); ++i) out.points[scene.pixel_index[i]] = convert(in[i]);
+    out.width = static_cast<uint32_t>(scene.image_width);
+    out.height = static_cast<uint32_t>(scene.image_height);
+    out.is_dense = false;
+  } else {
+    out.points.reserve(in.size());
+    for (const auto& p : in) out.points.push_back(convert(p));
+    out.width = static_cast<uint32_t>(in.size());
+    out.height = 1;
+    out.is_dense = true;
+  }
+  out.sensor_origin_ = Eigen::Vector4f(scene.sensor_origin.x(), scene.sensor_origin.y(), scene.sensor_origin.z(), 0.0f);
+  out.sensor_orientation_ = scene.sensor_orientation;
+  int status = -1;
+  try {
+    status = pcl::PCDWriter().writeBinary(path, out);
+  } catch (const pcl::PCLException& e) {
+    throw Error(ErrorCode::kIo, path + ": cannot write PCD: " + e.what());
+  }
+  if (status < 0) throw Error(ErrorCode::kIo, path + ": cannot write PCD");
+}
+
+void requireConsistentPixels(const Scene& scene, const std::string& path) {
+  if (!scene.cloud) throw Error(ErrorCode::kInvalidInput, path + ": scene '" + scene.source + "' has no cloud");
+  if (scene.pixel_index.empty()) return;
+  const size_t pixels = static_cast<size_t>(std::max(scene.image_width, 0)) * std::max(scene.image_height, 0);
+  if (scene.pixel_index.size() != scene.cloud->size()) {
+    throw Error(ErrorCode::kInvalidInput, path + ": scene '" + scene.source + "' has " +
+                                              std::to_string(scene.pixel_index.size()) + " pixel indices for " +
+                                              std::to_string(scene.cloud->size()) + " points");
+  }
+  for (int index : scene.pixel_index) {
+    if (index < 0 || static_cast<size_t>(index) >= pixels) {
+      throw Error(ErrorCode::kInvalidInput, path + ": scene '" + scene.source + "' has pixel index " +
+                                                std::to_string(index) + " outside its " +
+                                                std::to_string(scene.image_width) + "x" +
+                                                std::to_string(scene.image_height) + " image");
+    }
+  }
+}
+
+}  // namespace
+
+Scene loadCloudFile(const std::string& path) {
+  const std::string ext = lowercaseExtension(path);
+  if (ext != ".pcd" && ext != ".ply") {
+    throw Error(ErrorCode::kInvalidInput, path + ": unsupported cloud format '" + ext + "' (expected .pcd or .ply)");
+  }
+  requireReadableFile(path);
+  pcl::PCLPointCloud2 blob;
+  Eigen::Vector4f origin = Eigen::Vector4f::Zero();
+  Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
+  try {
+    if (ext == ".pcd") {
+      readPcd(path, blob, origin, orientation);
+    } else {
+      int version = 0;
+      if (pcl::PLYReader().read(path, blob, origin, orientation, version) < 0) {
+        throw Error(ErrorCode::kInvalidInput, path + ": malformed PLY file (header or data cannot be parsed)");
+      }
+    }
+  } catch (const pcl::PCLException& e) {
+    throw Error(ErrorCode::kInvalidInput, path + ": malformed " + ext.substr(1) + " file: " + e.what());
+  }
+  return sceneFromBlob(blob, origin, orientation, path);
+}
+
+Scene depthToScene(const uint16_t* depth, int width, int height, const DepthIntrinsics& intrinsics,
+                   const std::string& source) {
+  if (depth == nullptr || width <= 0 || height <= 0) {
+    throw Error(ErrorCode::kInvalidInput, source + ": empty depth image (" + std::to_string(width) + "x" +
+                                              std::to_string(height) + ")");
+  }
+  const auto positive = [](float v) { return std::isfinite(v) && v > 0.0f; };
+  if (!positive(intrinsics.fx) || !positive(intrinsics.fy) || !positive(intrinsics.depth_scale) ||
+      !std::isfinite(intrinsics.cx) || !std::isfinite(intrinsics.cy)) {
+    throw Error(ErrorCode::kInvalidInput,
+                source + ": invalid intrinsics fx=" + std::to_string(intrinsics.fx) + " fy=" +
+                    std::to_string(intrinsics.fy) + " cx=" + std::to_string(intrinsics.cx) + " cy=" +
+                    std::to_string(intrinsics.cy) + " depth_scale=" + std::to_string(intrinsics.depth_scale) +
+                    " (focal lengths and scale must be positive)");
+  }
+  const float inv_fx = 1.0f / intrinsics.fx, inv_fy = 1.0f / intrinsics.fy;
+  const float inv_scale = 1.0f / intrinsics.depth_scale;
+  const size_t count = static_cast<size_t>(width) * height;
+  return collectFinite(count, width, height, false, source, [&](size_t i, PointT& p) {
+    const uint16_t raw = depth[i];
+    if (raw == 0) {
+      p.z = std::numeric_limits<float>::quiet_NaN();
+      return;
+    }
+    const float u = static_cast<float>(i % width), v = static_cast<float>(i / width);
+    p.z = raw * inv_scale;
+    p.x = (u - intrinsics.cx) * p.z * inv_fx;
+    p.y = (v - intrinsics.cy) * p.z * inv_fy;
+  });
+}
+
+Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrinsics, const std::string& source) {
+  const DepthPng image = decodeDepthPng16(png_bytes, source);
+  return depthToScene(image.pixels.data(), image.width, image.height, intrinsics, source);
+}
+
+Scene loadDepthPng(const std::string& path, const DepthIntrinsics& intrinsics) {
+  return decodeDepthPng(readFileBytes(path), intrinsics, path);
+}
+
+Scene sceneFromPacked(const float* xyz, size_t count, const uint8_t* rgb, int width, int height,
+                      const std::string& source) {
+  if (count == 0 || xyz == nullptr) throw Error(ErrorCode::kInvalidInput, source + ": no points");
+  if (width <= 0 || height <= 0) {
+    throw Error(ErrorCode::kInvalidInput, source + ": width " + std::to_string(width) + " and height " +
+                                              std::to_string(height) + " must be positive");
+  }
+  if (static_cast<size_t>(width) * height != count) {
+    throw Error(ErrorCode::kInvalidInput, source + ": width*height = " + std::to_string(width) + "*" +
+                                              std::to_string(height) + " = " +
+                                              std::to_string(static_cast<size_t>(width) * height) +
+                                              " does not match the " + std::to_string(count) + " points sent");
+  }
+  return collectFinite(count, width, height, rgb != nullptr, source, [&](size_t i, PointT& p) {
+    p.x = xyz[3 * i];
+    p.y = xyz[3 * i + 1];
+    p.z = xyz[3 * i + 2];
+    if (rgb != nullptr) {
+      p.r = rgb[3 * i];
+      p.g = rgb[3 * i + 1];
+      p.b = rgb[3 * i + 2];
+    }
+  });
+}
+
+void savePcd(const Scene& scene, const std::string& path) {
+  requireConsistentPixels(scene, path);
+  if (scene.has_color) {
+    writePcd<pcl::PointXYZRGB>(scene, path);
+  } else {
+    writePcd<pcl::PointXYZ>(scene, path);
+  }
+}
+
+void savePlyPoints(const std::vector<Eigen::Vector3f>& points, const std::vector<Eigen::Vector3i>& colors,
+                   const std::string& path, PlyEncoding encoding) {
+  if (!colors.empty() && colors.size() != points.size()) {
+    throw Error(ErrorCode::kInvalidInput, path + ": " + std::to_string(colors.size()) + " colours for " +
+                                              std::to_string(points.size()) + " points");
+  }
+  const bool with_color = !colors.empty();
+  std::string out = "ply\nformat ";
+  out += encoding == PlyEncoding::kAscii ? "ascii" : "binary_little_endian";
+  out += " 1.0\nelement vertex " + std::to_string(points.size()) +
+         "\nproperty float x\nproperty float y\nproperty float z\n";
+  if (with_color) out += "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  out += "end_header\n";
+  const auto channel = [](int v) { return static_cast<uint8_t>(std::clamp(v, 0, 255)); };
+  char line[96];
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i];
+    if (encoding == PlyEncoding::kAscii) {
+      int n = std::snprintf(line, sizeof(line), "%.9g %.9g %.9g", p.x(), p.y(), p.z());
+      if (with_color) {
+        n += std::snprintf(line + n, sizeof(line) - n, " %d %d %d", channel(colors[i].x()), channel(colors[i].y()),
+                           channel(colors[i].z()));
+      }
+      out.append(line, static_cast<size_t>(n)).push_back('\n');
+    } else {
+      for (int c = 0; c < 3; ++c) {
+        uint32_t bits;
+        std::memcpy(&bits, &p[c], sizeof(bits));
+        for (int byte = 0; byte < 4; ++byte) out.push_back(static_cast<char>((bits >> (8 * byte)) & 0xFFu));
+      }
+      if (with_color) {
+        for (int c = 0; c < 3; ++c) out.push_back(static_cast<char>(channel(colors[i][c])));
+      }
+    }
+  }
+  writeFileBytes(path, out);
+}
+
+}  // namespace ism
