@@ -1,0 +1,303 @@
+#include "core/model/model_file.h"
+
+#include <zlib.h>
+
+#include <cstdio>
+#include <fstream>
+#include <set>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "ism/v1/model.pb.h"
+
+namespace ism {
+namespace {
+
+constexpr const char* kMagic = "ISM-MODEL";
+
+uint32_t crc32Of(const std::string& bytes) {
+  return static_cast<uint32_t>(::crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()),
+                                       static_cast<uInt>(bytes.size())));
+}
+
+// --- Model -> proto ---
+
+void toProto(const Codebook& codebook, v1::Codebook* out) {
+  out->set_size(static_cast<uint32_t>(codebook.size()));
+  out->set_dim(static_cast<uint32_t>(codebook.dim()));
+  const auto& c = codebook.centers();
+  out->mutable_centers()->Add(c.data(), c.data() + c.size());
+}
+
+void toProto(const VoteTable& table, v1::VoteTable* out) {
+  out->mutable_offsets()->Add(table.offsets.begin(), table.offsets.end());
+  auto* v = out->mutable_vectors();
+  v->Reserve(static_cast<int>(table.vectors.size() * 3));
+  for (const auto& vec : table.vectors) {
+    v->Add(vec.x());
+    v->Add(vec.y());
+    v->Add(vec.z());
+  }
+}
+
+void toProto(const ActivationParams& a, v1::ActivationParams* out) {
+  out->set_strategy(a.strategy == ActivationStrategy::kKnn ? v1::ACTIVATION_STRATEGY_KNN
+                                                           : v1::ACTIVATION_STRATEGY_CUTOFF);
+  out->set_k(a.k);
+  out->set_cutoff(a.cutoff);
+}
+
+v1::CodebookType toProto(CodebookType t) {
+  return t == CodebookType::kGlobal ? v1::CODEBOOK_TYPE_GLOBAL : v1::CODEBOOK_TYPE_SEPARATED;
+}
+
+v1::VoteWeighting toProto(VoteWeighting w) {
+  switch (w) {
+    case VoteWeighting::kCategorization: return v1::VOTE_WEIGHTING_CATEGORIZATION;
+    case VoteWeighting::kLocalization: return v1::VOTE_WEIGHTING_LOCALIZATION;
+    case VoteWeighting::kActivation: return v1::VOTE_WEIGHTING_ACTIVATION;
+  }
+  return v1::VOTE_WEIGHTING_UNSPECIFIED;
+}
+
+// --- proto -> Model, every size checked against the others ---
+
+class Reader {
+ public:
+  explicit Reader(std::string source) : source_(std::move(source)) {}
+
+  [[noreturn]] void fail(const std::string& what) const {
+    throw Error(ErrorCode::kCorruptModel, source_ + ": " + what);
+  }
+
+  Codebook codebook(const v1::Codebook& in, const std::string& where) const {
+    if (static_cast<uint64_t>(in.centers_size()) != static_cast<uint64_t>(in.size()) * in.dim()) {
+      fail(where + " has " + std::to_string(in.centers_size()) + " centre values, expected size " +
+           std::to_string(in.size()) + " x dim " + std::to_string(in.dim()));
+    }
+    DescriptorMatrix centers(in.size(), in.dim());
+    std::copy(in.centers().begin(), in.centers().end(), centers.data());
+    return Codebook(std::move(centers));
+  }
+
+  VoteTable votes(const v1::VoteTable& in, int codebook_size, const std::string& where) const {
+    VoteTable table;
+    if (in.offsets_size() == 0 && in.vectors_size() == 0) return table;
+    if (in.offsets_size() != codebook_size + 1) {
+      fail(where + " has " + std::to_string(in.offsets_size()) + " offsets, expected codebook size + 1 = " +
+           std::to_string(codebook_size + 1));
+    }
+    if (in.vectors_size() % 3 != 0) fail(where + " has a vote vector count not divisible by 3");
+    table.offsets.assign(in.offsets().begin(), in.offsets().end());
+    for (size_t i = 1; i < table.offsets.size(); ++i) {
+      if (table.offsets[i] < table.offsets[i - 1]) fail(where + " offsets decrease at codeword " + std::to_string(i - 1));
+    }
+    if (table.offsets.front() != 0 || table.offsets.back() != static_cast<uint32_t>(in.vectors_size() / 3)) {
+      fail(where + " offsets do not span its " + std::to_string(in.vectors_size() / 3) + " votes");
+    }
+    table.vectors.resize(static_cast<size_t>(in.vectors_size() / 3));
+    for (size_t i = 0; i < table.vectors.size(); ++i) {
+      table.vectors[i] = Eigen::Vector3f(in.vectors(3 * i), in.vectors(3 * i + 1), in.vectors(3 * i + 2));
+    }
+    return table;
+  }
+
+  ActivationParams activation(const v1::ActivationParams& in, const std::string& where) const {
+    ActivationParams out;
+    out.strategy = strategy(in.strategy(), where);
+    out.k = in.k();
+    out.cutoff = in.cutoff();
+    return out;
+  }
+
+  ActivationStrategy strategy(int v, const std::string& where) const {
+    if (v == v1::ACTIVATION_STRATEGY_KNN) return ActivationStrategy::kKnn;
+    if (v == v1::ACTIVATION_STRATEGY_CUTOFF) return ActivationStrategy::kCutoff;
+    fail(where + " has unknown activation strategy " + std::to_string(v));
+  }
+
+  CodebookType codebookType(int v, const std::string& where) const {
+    if (v == v1::CODEBOOK_TYPE_GLOBAL) return CodebookType::kGlobal;
+    if (v == v1::CODEBOOK_TYPE_SEPARATED) return CodebookType::kSeparated;
+    fail(where + " has unknown codebook type " + std::to_string(v));
+  }
+
+  VoteWeighting weighting(int v, const std::string& where) const {
+    if (v == v1::VOTE_WEIGHTING_CATEGORIZATION) return VoteWeighting::kCategorization;
+    if (v == v1::VOTE_WEIGHTING_LOCALIZATION) return VoteWeighting::kLocalization;
+    if (v == v1::VOTE_WEIGHTING_ACTIVATION) return VoteWeighting::kActivation;
+    fail(where + " has unknown vote weighting " + std::to_string(v));
+  }
+
+ private:
+  std::string source_;
+};
+
+Model fromProto(const v1::ModelData& in, const std::string& source) {
+  const Reader r(source);
+  Model m;
+  const auto& fe = in.front_end();
+  m.front_end.downsample.leaf_size = fe.leaf_size();
+  m.front_end.smoothing.enabled = fe.smoothing_enabled();
+  m.front_end.smoothing.radius = fe.smoothing_radius();
+  m.front_end.smoothing.polynomial_order = fe.smoothing_polynomial_order();
+  m.front_end.normals.radius = fe.normal_radius();
+  m.front_end.keypoints.radius = fe.boundary_radius();
+  m.front_end.keypoints.angle_threshold = fe.boundary_angle_threshold();
+  m.front_end.shot.radius = fe.shot_radius();
+  m.front_end.shot.min_neighbours = fe.shot_min_neighbours();
+  if (!(fe.leaf_size() > 0) || !(fe.normal_radius() > 0) || !(fe.boundary_radius() > 0) || !(fe.shot_radius() > 0)) {
+    r.fail("front-end parameters have a non-positive radius or leaf size");
+  }
+  m.trained_knn = r.activation(in.trained_knn(), "trained_knn");
+  m.trained_cutoff = r.activation(in.trained_cutoff(), "trained_cutoff");
+  if (in.global_codebook().size() > 0) m.global_codebook = r.codebook(in.global_codebook(), "global codebook");
+  const int dim = m.global_codebook ? m.global_codebook->dim() : -1;
+
+  if (in.categories_size() == 0) r.fail("the model has no categories");
+  std::set<std::string> names;
+  for (const auto& c : in.categories()) {
+    const std::string where = "category '" + c.name() + "'";
+    if (c.name().empty()) r.fail("a category has an empty name");
+    if (!names.insert(c.name()).second) r.fail(where + " appears twice");
+    if (!(c.bin_size() > 0)) r.fail(where + " has bin size " + std::to_string(c.bin_size()));
+    CategoryModel cat;
+    cat.name = c.name();
+    cat.bin_size = c.bin_size();
+    const auto& b = c.box();
+    cat.box = {b.min_volume(), b.max_volume(), b.max_edge(), b.mean_volume(), b.std_volume(), b.mean_max_edge(),
+               b.std_max_edge()};
+    if (c.own_codebook().size() > 0) {
+      cat.own_codebook = r.codebook(c.own_codebook(), where + " codebook");
+      if (dim >= 0 && cat.own_codebook->dim() != dim) r.fail(where + " codebook dimension differs from the global one");
+      cat.own_votes = r.votes(c.own_votes(), cat.own_codebook->size(), where + " own votes");
+    } else if (c.own_votes().vectors_size() > 0) {
+      r.fail(where + " has separated votes but no separated codebook");
+    }
+    if (m.global_codebook) {
+      cat.global_votes = r.votes(c.global_votes(), m.global_codebook->size(), where + " global votes");
+    } else if (c.global_votes().vectors_size() > 0) {
+      r.fail(where + " has global votes but the model has no global codebook");
+    }
+    for (const auto& t : c.thresholds()) {
+      const ThresholdKey key{r.codebookType(t.codebook(), where + " threshold"),
+                             r.strategy(t.activation(), where + " threshold"),
+                             r.weighting(t.weighting(), where + " threshold")};
+      cat.thresholds[key] = t.value();
+    }
+    cat.training_models = c.training_models();
+    cat.training_scans = c.training_scans();
+    m.categories.push_back(std::move(cat));
+  }
+  const auto& p = in.provenance();
+  m.provenance.meshes.assign(p.meshes().begin(), p.meshes().end());
+  m.provenance.scans = p.scans();
+  m.provenance.created = p.created();
+  m.provenance.code_version = p.code_version();
+  m.provenance.command = p.command();
+  return m;
+}
+
+}  // namespace
+
+std::string serializeModel(const Model& model) {
+  v1::ModelData data;
+  auto* fe = data.mutable_front_end();
+  fe->set_leaf_size(model.front_end.downsample.leaf_size);
+  fe->set_smoothing_enabled(model.front_end.smoothing.enabled);
+  fe->set_smoothing_radius(model.front_end.smoothing.radius);
+  fe->set_smoothing_polynomial_order(model.front_end.smoothing.polynomial_order);
+  fe->set_normal_radius(model.front_end.normals.radius);
+  fe->set_boundary_radius(model.front_end.keypoints.radius);
+  fe->set_boundary_angle_threshold(model.front_end.keypoints.angle_threshold);
+  fe->set_shot_radius(model.front_end.shot.radius);
+  fe->set_shot_min_neighbours(model.front_end.shot.min_neighbours);
+  toProto(model.trained_knn, data.mutable_trained_knn());
+  toProto(model.trained_cutoff, data.mutable_trained_cutoff());
+  if (model.global_codebook) toProto(*model.global_codebook, data.mutable_global_codebook());
+  for (const auto& c : model.categories) {
+    auto* out = data.add_categories();
+    out->set_name(c.name);
+    out->set_bin_size(c.bin_size);
+    auto* b = out->mutable_box();
+    b->set_min_volume(c.box.min_volume);
+    b->set_max_volume(c.box.max_volume);
+    b->set_max_edge(c.box.max_edge);
+    b->set_mean_volume(c.box.mean_volume);
+    b->set_std_volume(c.box.std_volume);
+    b->set_mean_max_edge(c.box.mean_max_edge);
+    b->set_std_max_edge(c.box.std_max_edge);
+    if (c.own_codebook) toProto(*c.own_codebook, out->mutable_own_codebook());
+    toProto(c.global_votes, out->mutable_global_votes());
+    toProto(c.own_votes, out->mutable_own_votes());
+    for (const auto& [key, value] : c.thresholds) {
+      auto* t = out->add_thresholds();
+      t->set_codebook(toProto(key.codebook));
+      t->set_activation(key.activation == ActivationStrategy::kKnn ? v1::ACTIVATION_STRATEGY_KNN
+                                                                   : v1::ACTIVATION_STRATEGY_CUTOFF);
+      t->set_weighting(toProto(key.weighting));
+      t->set_value(value);
+    }
+    out->set_training_models(c.training_models);
+    out->set_training_scans(c.training_scans);
+  }
+  auto* p = data.mutable_provenance();
+  for (const auto& mesh : model.provenance.meshes) p->add_meshes(mesh);
+  p->set_scans(model.provenance.scans);
+  p->set_created(model.provenance.created);
+  p->set_code_version(model.provenance.code_version);
+  p->set_command(model.provenance.command);
+
+  v1::ModelFile file;
+  file.set_magic(kMagic);
+  file.set_format_version(kModelFormatVersion);
+  if (!data.SerializeToString(file.mutable_payload())) {
+    throw Error(ErrorCode::kInternal, "model serialization failed (payload over 2 GB?)");
+  }
+  file.set_payload_crc32(crc32Of(file.payload()));
+  return file.SerializeAsString();
+}
+
+Model parseModel(const std::string& bytes, const std::string& source) {
+  const Reader r(source);
+  v1::ModelFile file;
+  if (!file.ParseFromString(bytes)) r.fail("not a model file or truncated (the ModelFile envelope does not parse)");
+  if (file.magic() != kMagic) r.fail("wrong magic '" + file.magic().substr(0, 32) + "', expected '" + kMagic + "'");
+  if (file.format_version() == 0 || file.format_version() > kModelFormatVersion) {
+    r.fail("format version " + std::to_string(file.format_version()) + " is not supported (this build reads 1.." +
+           std::to_string(kModelFormatVersion) + ")");
+  }
+  if (crc32Of(file.payload()) != file.payload_crc32()) {
+    r.fail("CRC-32 mismatch (the file is truncated or damaged)");
+  }
+  v1::ModelData data;
+  if (!data.ParseFromString(file.payload())) r.fail("the payload does not parse as ModelData");
+  return fromProto(data, source);
+}
+
+void saveModel(const Model& model, const std::string& path) {
+  const std::string bytes = serializeModel(model);
+  // Written next to the target and renamed, so a crash never leaves a half-written model.
+  const std::string temporary = path + ".tmp";
+  {
+    std::ofstream out(temporary, std::ios::binary | std::ios::trunc);
+    if (!out) throw Error(ErrorCode::kIo, "cannot write model file " + temporary);
+    out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!out.flush()) throw Error(ErrorCode::kIo, "cannot write model file " + temporary);
+  }
+  if (std::rename(temporary.c_str(), path.c_str()) != 0) {
+    std::remove(temporary.c_str());
+    throw Error(ErrorCode::kIo, "cannot rename " + temporary + " to " + path);
+  }
+}
+
+Model loadModel(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw Error(ErrorCode::kNotFound, "model file " + path + " does not exist or cannot be opened");
+  std::ostringstream bytes;
+  bytes << in.rdbuf();
+  if (in.bad()) throw Error(ErrorCode::kIo, "cannot read model file " + path);
+  return parseModel(bytes.str(), path);
+}
+
+}  // namespace ism

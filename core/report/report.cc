@@ -1,0 +1,228 @@
+#include "core/report/report.h"
+
+#include <png.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+
+#include "core/common/error.h"
+#include "core/io/cloud_io.h"
+#include "core/io/depth_png.h"
+
+namespace ism {
+namespace {
+
+nlohmann::json toJson(const Eigen::Vector3f& v) { return {v.x(), v.y(), v.z()}; }
+
+// One RGB image with a depth buffer, so that nearer points win and boxes are drawn on top.
+struct Canvas {
+  int width, height;
+  std::vector<uint8_t> rgb;
+  std::vector<float> depth;
+  Canvas(int w, int h) : width(w), height(h), rgb(static_cast<size_t>(w) * h * 3, 0), depth(static_cast<size_t>(w) * h, INFINITY) {}
+
+  void set(int u, int v, const Eigen::Vector3i& color) {
+    if (u < 0 || v < 0 || u >= width || v >= height) return;
+    uint8_t* p = &rgb[(static_cast<size_t>(v) * width + u) * 3];
+    for (int c = 0; c < 3; ++c) p[c] = static_cast<uint8_t>(std::clamp(color[c], 0, 255));
+  }
+
+  void splat(int u, int v, float z, const Eigen::Vector3i& color, int size) {
+    for (int dv = 0; dv < size; ++dv) {
+      for (int du = 0; du < size; ++du) {
+        const int x = u + du, y = v + dv;
+        if (x < 0 || y < 0 || x >= width || y >= height) continue;
+        float& d = depth[static_cast<size_t>(y) * width + x];
+        if (z < d) {
+          d = z;
+          set(x, y, color);
+        }
+      }
+    }
+  }
+
+  void line(Eigen::Vector2f a, Eigen::Vector2f b, const Eigen::Vector3i& color, int thickness) {
+    const int steps = static_cast<int>(std::ceil((b - a).cwiseAbs().maxCoeff())) + 1;
+    if (steps > 4 * (width + height)) return;  // degenerate projection of a far-off edge
+    for (int i = 0; i <= steps; ++i) {
+      const Eigen::Vector2f p = a + (b - a) * (static_cast<float>(i) / static_cast<float>(steps));
+      for (int dv = 0; dv < thickness; ++dv) {
+        for (int du = 0; du < thickness; ++du) {
+          set(static_cast<int>(std::lround(p.x())) + du - thickness / 2, static_cast<int>(std::lround(p.y())) + dv - thickness / 2, color);
+        }
+      }
+    }
+  }
+};
+
+}  // namespace
+
+std::string hypothesesTable(const RecognitionResult& result, bool include_rejected) {
+  std::string out;
+  char line[256];
+  std::snprintf(line, sizeof line, "%-16s %8s %9s %24s %18s %7s%s\n", "category", "score", "threshold",
+                "centre (m)", "box (m)", "support", include_rejected ? "  selection" : "");
+  out += line;
+  const auto add = [&](const Hypothesis& h, const char* selection) {
+    std::snprintf(line, sizeof line, "%-16s %8.3f %9.3f %7.2f %7.2f %7.2f   %5.2f %5.2f %5.2f %7d%s%s\n",
+                  h.category.c_str(), h.score, h.threshold, h.center.x(), h.center.y(), h.center.z(), h.box.size.x(),
+                  h.box.size.y(), h.box.size.z(), h.support, include_rejected ? "  " : "", selection);
+    out += line;
+  };
+  for (const auto& h : result.hypotheses) add(h, include_rejected ? (h.passed_selection ? "passed" : "failed") : "");
+  if (include_rejected) {
+    for (const auto& h : result.rejected) add(h, "rejected");
+  }
+  if (result.hypotheses.empty() && (!include_rejected || result.rejected.empty())) out += "(no hypotheses)\n";
+  return out;
+}
+
+nlohmann::json toJson(const Hypothesis& h) {
+  nlohmann::json j = {{"category", h.category},
+                      {"score", h.score},
+                      {"threshold", h.threshold},
+                      {"center", toJson(h.center)},
+                      {"box",
+                       {{"center", toJson(h.box.center)},
+                        {"size", toJson(h.box.size)},
+                        {"rotation_wxyz", {h.box.rotation.w(), h.box.rotation.x(), h.box.rotation.y(), h.box.rotation.z()}}}},
+                      {"support", h.support},
+                      {"support_centroid", toJson(h.support_centroid)},
+                      {"passed_selection", h.passed_selection}};
+  if (!h.support_keypoints.empty()) {
+    auto& points = j["support_keypoints"] = nlohmann::json::array();
+    for (const auto& p : h.support_keypoints) points.push_back(toJson(p));
+  }
+  return j;
+}
+
+nlohmann::json toJson(const RecognitionResult& result) {
+  nlohmann::json j = {{"hypotheses", nlohmann::json::array()},
+                      {"rejected", nlohmann::json::array()},
+                      {"timings_ms", nlohmann::json::array()},
+                      {"input_points", result.input_points},
+                      {"surface_points", result.surface_points},
+                      {"keypoints", result.keypoints}};
+  for (const auto& h : result.hypotheses) j["hypotheses"].push_back(toJson(h));
+  for (const auto& h : result.rejected) j["rejected"].push_back(toJson(h));
+  for (const auto& [stage, ms] : result.timings.stages) j["timings_ms"].push_back({{"stage", stage}, {"ms", ms}});
+  return j;
+}
+
+Eigen::Vector3i categoryColor(const std::string& category) {
+  // Saturated, mutually distinct hues; the name picks one (FNV-1a, stable across platforms).
+  static const Eigen::Vector3i palette[] = {{230, 25, 75},  {60, 180, 75},  {255, 225, 25}, {0, 130, 200},
+                                            {245, 130, 48}, {145, 30, 180}, {70, 240, 240}, {240, 50, 230},
+                                            {210, 245, 60}, {250, 190, 190}};
+  uint32_t hash = 2166136261u;
+  for (unsigned char c : category) hash = (hash ^ c) * 16777619u;
+  return palette[hash % (sizeof palette / sizeof palette[0])];
+}
+
+std::string renderPicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses, const PictureParams& params) {
+  if (params.width <= 0 || params.height <= 0 || params.width > 16384 || params.height > 16384) {
+    throw Error(ErrorCode::kInvalidInput, "picture size " + std::to_string(params.width) + "x" +
+                                              std::to_string(params.height) + " is out of range");
+  }
+  Canvas canvas(params.width, params.height);
+  const Eigen::Matrix3f world_to_camera = scene.sensor_orientation.normalized().toRotationMatrix().transpose();
+  const auto toCamera = [&](const Eigen::Vector3f& p) { return Eigen::Vector3f(world_to_camera * (p - scene.sensor_origin)); };
+  const auto project = [&](const Eigen::Vector3f& c) {
+    return Eigen::Vector2f(params.fx * c.x() / c.z() + params.cx, params.fy * c.y() / c.z() + params.cy);
+  };
+
+  std::vector<Eigen::Vector3f> camera_points;
+  camera_points.reserve(scene.cloud->size());
+  float near = INFINITY, far = 0;
+  for (const auto& p : scene.cloud->points) {
+    camera_points.push_back(toCamera(p.getVector3fMap()));
+    if (camera_points.back().z() > 0) {
+      near = std::min(near, camera_points.back().z());
+      far = std::max(far, camera_points.back().z());
+    }
+  }
+  // An image-like scene fills the frame at one pixel per point; unorganised clouds need bigger dots.
+  const int dot = scene.image_width > 0 ? 1 : 2;
+  for (size_t i = 0; i < camera_points.size(); ++i) {
+    const Eigen::Vector3f& c = camera_points[i];
+    if (!(c.z() > 0)) continue;
+    const Eigen::Vector2f uv = project(c);
+    Eigen::Vector3i color;
+    if (scene.has_color) {
+      const auto& p = scene.cloud->points[i];
+      color = Eigen::Vector3i(p.r, p.g, p.b);
+    } else {
+      const float t = far > near ? (c.z() - near) / (far - near) : 0.0f;
+      color = Eigen::Vector3i::Constant(static_cast<int>(230 - 170 * t));
+    }
+    canvas.splat(static_cast<int>(std::floor(uv.x())), static_cast<int>(std::floor(uv.y())), c.z(), color, dot);
+  }
+
+  constexpr float kNearPlane = 0.05f;  // edges are clipped here so that nothing behind the sensor projects
+  for (const auto& h : hypotheses) {
+    const Eigen::Matrix3f axes = h.box.rotation.toRotationMatrix();
+    Eigen::Vector3f corners[8];
+    for (int i = 0; i < 8; ++i) {
+      const Eigen::Vector3f sign((i & 1) ? 0.5f : -0.5f, (i & 2) ? 0.5f : -0.5f, (i & 4) ? 0.5f : -0.5f);
+      corners[i] = toCamera(h.box.center + axes * sign.cwiseProduct(h.box.size));
+    }
+    const Eigen::Vector3i color = categoryColor(h.category);
+    for (int a = 0; a < 8; ++a) {
+      for (int bit : {1, 2, 4}) {
+        if (a & bit) continue;
+        Eigen::Vector3f p = corners[a], q = corners[a | bit];
+        if (p.z() < kNearPlane && q.z() < kNearPlane) continue;
+        if (p.z() < kNearPlane) std::swap(p, q);
+        if (q.z() < kNearPlane) q = p + (q - p) * ((p.z() - kNearPlane) / (p.z() - q.z()));
+        canvas.line(project(p), project(q), color, params.line_width);
+      }
+    }
+  }
+
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  image.width = static_cast<png_uint_32>(params.width);
+  image.height = static_cast<png_uint_32>(params.height);
+  image.format = PNG_FORMAT_RGB;
+  png_alloc_size_t size = 0;
+  if (!png_image_write_to_memory(&image, nullptr, &size, 0, canvas.rgb.data(), 0, nullptr)) {
+    throw Error(ErrorCode::kInternal, std::string("PNG encoding failed: ") + image.message);
+  }
+  std::string bytes(size, '\0');
+  if (!png_image_write_to_memory(&image, bytes.data(), &size, 0, canvas.rgb.data(), 0, nullptr)) {
+    throw Error(ErrorCode::kInternal, std::string("PNG encoding failed: ") + image.message);
+  }
+  bytes.resize(size);
+  return bytes;
+}
+
+void savePicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses, const std::string& path,
+                 const PictureParams& params) {
+  writeFileBytes(path, renderPicture(scene, hypotheses, params));
+}
+
+void saveDebugPly(const Model& model, const RecognitionResult& result, const std::string& path) {
+  std::vector<Eigen::Vector3f> points;
+  std::vector<Eigen::Vector3i> colors;
+  for (const auto& p : result.keypoint_positions) {
+    points.push_back(p);
+    colors.emplace_back(255, 255, 255);
+  }
+  float heaviest = 0;
+  for (const auto& v : result.votes) heaviest = std::max(heaviest, v.weight);
+  for (const auto& v : result.votes) {
+    points.push_back(v.position);
+    const float brightness = heaviest > 0 ? 0.3f + 0.7f * v.weight / heaviest : 1.0f;
+    const Eigen::Vector3i base = categoryColor(model.categories.at(static_cast<size_t>(v.category)).name);
+    colors.push_back((base.cast<float>() * brightness).cast<int>());
+  }
+  for (const auto& h : result.hypotheses) {
+    points.push_back(h.center);
+    colors.emplace_back(255, 0, 0);
+  }
+  savePlyPoints(points, colors, path);
+}
+
+}  // namespace ism

@@ -1,0 +1,105 @@
+// ism-detect: recognise furniture in point clouds (PCD/PLY) or depth PNGs with a trained model.
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cstdio>
+#include <iostream>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "core/io/cloud_io.h"
+#include "core/model/model_file.h"
+#include "core/recognition/recognizer.h"
+#include "core/report/report.h"
+
+namespace {
+
+bool isPng(std::string path) {
+  std::transform(path.begin(), path.end(), path.begin(), [](unsigned char c) { return std::tolower(c); });
+  return path.size() > 4 && path.compare(path.size() - 4, 4, ".png") == 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"Recognise furniture in scenes with a trained ISM model."};
+  std::string model_path, codebook = "global", activation = "knn", weighting = "lw", categories, picture, debug_ply;
+  std::vector<std::string> files;
+  ism::DepthIntrinsics intrinsics;
+  ism::RecognitionOptions options;
+  float min_score = 0;
+  bool json = false, no_box_selection = false;
+  app.add_option("-m,--model", model_path, "trained model file")->required();
+  app.add_option("files", files, "scenes: .pcd, .ply, or 16-bit depth .png")->required();
+  app.add_option("--fx", intrinsics.fx, "depth PNG focal length x (px)");
+  app.add_option("--fy", intrinsics.fy, "depth PNG focal length y (px)");
+  app.add_option("--cx", intrinsics.cx, "depth PNG principal point x (px)");
+  app.add_option("--cy", intrinsics.cy, "depth PNG principal point y (px)");
+  app.add_option("--depth-scale", intrinsics.depth_scale, "depth PNG units per metre")->check(CLI::PositiveNumber);
+  app.add_option("--codebook", codebook, "global or separated")->check(CLI::IsMember({"global", "separated"}));
+  app.add_option("--activation", activation, "knn or cutoff")->check(CLI::IsMember({"knn", "cutoff"}));
+  app.add_option("--k", options.strategy.activation.k, "codewords per descriptor (knn)")->check(CLI::PositiveNumber);
+  app.add_option("--cutoff", options.strategy.activation.cutoff, "activation distance (cutoff)")->check(CLI::PositiveNumber);
+  app.add_option("--weighting", weighting, "vote weights: cw, lw or aw")->check(CLI::IsMember({"cw", "lw", "aw"}));
+  app.add_option("--categories", categories, "comma-separated categories (default: all)");
+  auto* min_score_opt = app.add_option("--min-score", min_score, "score threshold instead of the model's");
+  app.add_option("--max", options.max_hypotheses, "at most N hypotheses (0 = all)")->check(CLI::NonNegativeNumber);
+  app.add_flag("--json", json, "print JSON instead of a table");
+  app.add_option("--picture", picture, "write the scene with the boxes drawn as PNG (one input only)");
+  app.add_option("--debug-ply", debug_ply, "write keypoints, votes and centres as PLY (one input only)");
+  app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
+  try {
+    app.parse(argc, argv);
+    if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
+      throw CLI::ValidationError("--picture and --debug-ply take a single input file");
+    }
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  }
+  try {
+    options.strategy.codebook = ism::parseCodebookType(codebook);
+    options.strategy.activation.strategy = ism::parseActivationStrategy(activation);
+    options.strategy.weighting = ism::parseVoteWeighting(weighting);
+    std::stringstream list(categories);
+    for (std::string c; std::getline(list, c, ',');) {
+      if (!c.empty()) options.categories.push_back(c);
+    }
+    if (*min_score_opt) options.min_score = min_score;
+    options.box_selection = !no_box_selection;
+    options.keep_votes = !debug_ply.empty();
+    const ism::Model model = ism::loadModel(model_path);
+
+    nlohmann::json all = nlohmann::json::array();
+    for (const auto& file : files) {
+      const ism::Scene scene = isPng(file) ? ism::loadDepthPng(file, intrinsics) : ism::loadCloudFile(file);
+      const ism::RecognitionResult result = ism::recognize(model, scene, options);
+      if (json) {
+        nlohmann::json j = ism::toJson(result);
+        j["file"] = file;
+        j["strategy"] = {{"codebook", codebook}, {"activation", activation}, {"weighting", weighting}};
+        all.push_back(std::move(j));
+      } else {
+        std::cout << "== " << file << ": " << result.input_points << " points, " << result.keypoints << " keypoints\n"
+                  << ism::hypothesesTable(result, no_box_selection) << "timings (ms):";
+        for (const auto& [stage, ms] : result.timings.stages) std::printf(" %s %.1f", stage.c_str(), ms);
+        std::printf(", total %.1f\n", result.timings.total());
+      }
+      if (!picture.empty()) {
+        ism::PictureParams pp;
+        if (isPng(file)) {
+          pp.fx = intrinsics.fx, pp.fy = intrinsics.fy, pp.cx = intrinsics.cx, pp.cy = intrinsics.cy;
+        }
+        if (scene.image_width > 0) pp.width = scene.image_width, pp.height = scene.image_height;
+        ism::savePicture(scene, result.hypotheses, picture, pp);
+      }
+      if (!debug_ply.empty()) ism::saveDebugPly(model, result, debug_ply);
+    }
+    if (json) std::cout << all.dump(2) << std::endl;
+  } catch (const ism::Error& e) {
+    std::cerr << "ism-detect: " << ism::errorCodeName(e.code()) << ": " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,61 @@
+// ism-train: CAD meshes -> virtual scans -> trained ISM model file.
+#include <CLI/CLI.hpp>
+#include <iostream>
+
+#include "core/common/error.h"
+#include "core/model/model_file.h"
+#include "core/training/trainer.h"
+
+int main(int argc, char** argv) {
+  CLI::App app{"Train furniture Implicit Shape Models from CAD meshes rendered as virtual Kinect scans."};
+  std::string folders, manifest, output, codebook = "both";
+  ism::TrainingParams params;
+  std::vector<std::string> bins;
+  auto* folders_opt = app.add_option("--folders", folders, "ROOT with one folder of meshes per category");
+  auto* manifest_opt = app.add_option("--manifest", manifest, "TSV: category path [width_m depth_m height_m up rotation credit]");
+  folders_opt->excludes(manifest_opt);
+  app.add_option("-o,--output", output, "model file to write")->required();
+  app.add_option("--codebook", codebook, "global, separated or both")->check(CLI::IsMember({"global", "separated", "both"}));
+  app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(CLI::PositiveNumber);
+  app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(CLI::PositiveNumber);
+  app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
+  app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
+  try {
+    app.parse(argc, argv);
+    if (folders.empty() == manifest.empty()) throw CLI::ValidationError("give exactly one of --folders or --manifest");
+  } catch (const CLI::CallForHelp& e) {
+    return app.exit(e);
+  } catch (const CLI::ParseError& e) {
+    app.exit(e);
+    return 2;
+  }
+  for (const auto& bin : bins) {
+    const auto eq = bin.find('=');
+    try {
+      if (eq == std::string::npos || eq == 0) throw std::invalid_argument("no CATEGORY=");
+      const float size = std::stof(bin.substr(eq + 1));
+      if (!(size > 0)) throw std::invalid_argument("not positive");
+      params.bin_sizes[bin.substr(0, eq)] = size;
+    } catch (const std::exception&) {
+      std::cerr << "ism-train: --bin '" << bin << "' must be CATEGORY=SIZE with SIZE > 0 in metres\n";
+      return 2;
+    }
+  }
+  params.global_codebook = codebook != "separated";
+  params.separated_codebooks = codebook != "global";
+  for (int i = 0; i < argc; ++i) params.command += (i ? " " : "") + std::string(argv[i]);
+  params.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  try {
+    const auto meshes = folders.empty() ? ism::readManifest(manifest) : ism::meshesFromFolders(folders);
+    for (const auto& m : meshes) params.bin_sizes.emplace(m.category, ism::defaultBinSize(m.category));
+    std::cout << "training on " << meshes.size() << " meshes, " << params.views.views << " views each" << std::endl;
+    const ism::Model model = ism::train(meshes, params);
+    ism::saveModel(model, output);
+    std::cout << "wrote " << output << " (" << model.categories.size() << " categories)" << std::endl;
+  } catch (const ism::Error& e) {
+    std::cerr << "ism-train: " << ism::errorCodeName(e.code()) << ": " << e.what() << '\n';
+    return 1;
+  }
+  return 0;
+}

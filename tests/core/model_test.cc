@@ -1,0 +1,165 @@
+#include "core/model/model_file.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <zlib.h>
+
+#include "core/common/error.h"
+#include "ism/v1/model.pb.h"
+
+namespace ism {
+namespace {
+
+VoteTable randomVotes(int codewords, int votes_per_codeword) {
+  VoteTable t;
+  t.offsets.push_back(0);
+  for (int c = 0; c < codewords; ++c) {
+    for (int v = 0; v < votes_per_codeword + c % 3; ++v) t.vectors.push_back(Eigen::Vector3f::Random());
+    t.offsets.push_back(static_cast<uint32_t>(t.vectors.size()));
+  }
+  return t;
+}
+
+Model sampleModel() {
+  Model m;
+  m.front_end.downsample.leaf_size = 0.012f;
+  m.front_end.smoothing.enabled = false;
+  m.front_end.shot.min_neighbours = 7;
+  m.trained_knn.k = 2;
+  m.trained_cutoff.cutoff = 0.3f;
+  m.global_codebook = Codebook(DescriptorMatrix::Random(6, 352));
+  for (const char* name : {"couch", "bed"}) {
+    CategoryModel c;
+    c.name = name;
+    c.bin_size = 0.2f;
+    c.box = {0.1f, 2.0f, 2.5f, 1.0f, 0.4f, 1.8f, 0.3f};
+    c.own_codebook = Codebook(DescriptorMatrix::Random(4, 352));
+    c.global_votes = randomVotes(6, 2);
+    c.own_votes = randomVotes(4, 1);
+    c.thresholds[{CodebookType::kGlobal, ActivationStrategy::kKnn, VoteWeighting::kActivation}] = 0.75f;
+    c.thresholds[{CodebookType::kSeparated, ActivationStrategy::kCutoff, VoteWeighting::kCategorization}] = 12.0f;
+    c.training_models = 3;
+    c.training_scans = 36;
+    m.categories.push_back(c);
+  }
+  m.provenance = {{"couch\ta.obj\tme", "bed\tb.obj\tyou"}, 72, "2024-01-01T00:00:00Z", "v1-test", "ism-train ..."};
+  return m;
+}
+
+void expectEqual(const VoteTable& a, const VoteTable& b) {
+  EXPECT_EQ(a.offsets, b.offsets);
+  ASSERT_EQ(a.vectors.size(), b.vectors.size());
+  for (size_t i = 0; i < a.vectors.size(); ++i) EXPECT_EQ(a.vectors[i], b.vectors[i]);
+}
+
+class ModelFileTest : public ::testing::Test {
+ protected:
+  std::string path = ::testing::TempDir() + "/model_test_" +
+                     ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".ism";
+  void TearDown() override { std::remove(path.c_str()); }
+
+  void writeBytes(const std::string& bytes) {
+    std::ofstream(path, std::ios::binary).write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  }
+
+  void expectCorrupt(const std::string& bytes, const std::string& check) {
+    writeBytes(bytes);
+    try {
+      loadModel(path);
+      FAIL() << "loaded a model that should fail the " << check << " check";
+    } catch (const Error& e) {
+      EXPECT_EQ(e.code(), ErrorCode::kCorruptModel) << e.what();
+      EXPECT_NE(std::string(e.what()).find(path), std::string::npos) << e.what();
+      EXPECT_NE(std::string(e.what()).find(check), std::string::npos) << e.what();
+    }
+  }
+};
+
+TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
+  const Model m = sampleModel();
+  saveModel(m, path);
+  const Model r = loadModel(path);
+  EXPECT_EQ(r.front_end.downsample.leaf_size, 0.012f);
+  EXPECT_FALSE(r.front_end.smoothing.enabled);
+  EXPECT_EQ(r.front_end.shot.min_neighbours, 7);
+  EXPECT_EQ(r.front_end.keypoints.angle_threshold, m.front_end.keypoints.angle_threshold);
+  EXPECT_EQ(r.trained_knn.k, 2);
+  EXPECT_EQ(r.trained_cutoff.strategy, ActivationStrategy::kCutoff);
+  EXPECT_EQ(r.trained_cutoff.cutoff, 0.3f);
+  ASSERT_TRUE(r.global_codebook);
+  EXPECT_EQ(r.global_codebook->centers(), m.global_codebook->centers());
+  ASSERT_EQ(r.categories.size(), 2u);
+  for (size_t i = 0; i < 2; ++i) {
+    const auto &a = m.categories[i], &b = r.categories[i];
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.bin_size, b.bin_size);
+    EXPECT_EQ(a.box.max_edge, b.box.max_edge);
+    EXPECT_EQ(a.box.std_max_edge, b.box.std_max_edge);
+    ASSERT_TRUE(b.own_codebook);
+    EXPECT_EQ(a.own_codebook->centers(), b.own_codebook->centers());
+    expectEqual(a.global_votes, b.global_votes);
+    expectEqual(a.own_votes, b.own_votes);
+    EXPECT_EQ(a.thresholds, b.thresholds);
+    EXPECT_EQ(b.training_models, 3);
+    EXPECT_EQ(b.training_scans, 36);
+  }
+  EXPECT_EQ(r.provenance.meshes, m.provenance.meshes);
+  EXPECT_EQ(r.provenance.scans, 72);
+  EXPECT_EQ(r.provenance.created, m.provenance.created);
+  EXPECT_EQ(r.provenance.code_version, "v1-test");
+  EXPECT_EQ(r.provenance.command, m.provenance.command);
+  EXPECT_TRUE(r.has(CodebookType::kGlobal));
+  EXPECT_TRUE(r.has(CodebookType::kSeparated));
+}
+
+TEST_F(ModelFileTest, RejectsACorruptedByte) {
+  std::string bytes = serializeModel(sampleModel());
+  bytes[bytes.size() / 2] ^= 0x10;  // inside the payload, the bulk of the file
+  expectCorrupt(bytes, "CRC-32");
+}
+
+TEST_F(ModelFileTest, RejectsATruncatedFile) {
+  const std::string bytes = serializeModel(sampleModel());
+  expectCorrupt(bytes.substr(0, bytes.size() - 100), "truncated");
+}
+
+TEST_F(ModelFileTest, RejectsWrongMagic) {
+  v1::ModelFile file;
+  file.ParseFromString(serializeModel(sampleModel()));
+  file.set_magic("NOT-A-MODEL");
+  expectCorrupt(file.SerializeAsString(), "wrong magic");
+}
+
+TEST_F(ModelFileTest, RejectsANewerFormatVersion) {
+  v1::ModelFile file;
+  file.ParseFromString(serializeModel(sampleModel()));
+  file.set_format_version(kModelFormatVersion + 1);
+  expectCorrupt(file.SerializeAsString(), "format version 2");
+}
+
+TEST_F(ModelFileTest, RejectsInconsistentVoteTable) {
+  v1::ModelFile file;
+  file.ParseFromString(serializeModel(sampleModel()));
+  v1::ModelData data;
+  data.ParseFromString(file.payload());
+  data.mutable_categories(1)->mutable_global_votes()->mutable_offsets()->RemoveLast();
+  file.set_payload(data.SerializeAsString());
+  file.set_payload_crc32(static_cast<uint32_t>(
+      ::crc32(0L, reinterpret_cast<const Bytef*>(file.payload().data()), static_cast<uInt>(file.payload().size()))));
+  expectCorrupt(file.SerializeAsString(), "category 'bed' global votes has 6 offsets");
+}
+
+TEST_F(ModelFileTest, MissingFileIsNotFound) {
+  try {
+    loadModel(path + ".absent");
+    FAIL() << "no exception";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kNotFound);
+    EXPECT_NE(std::string(e.what()).find(".absent"), std::string::npos);
+  }
+}
+
+}  // namespace
+}  // namespace ism

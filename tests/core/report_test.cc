@@ -1,0 +1,116 @@
+#include "core/report/report.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <fstream>
+#include <sstream>
+
+namespace ism {
+namespace {
+
+RecognitionResult sampleResult() {
+  RecognitionResult r;
+  Hypothesis h;
+  h.category = "couch";
+  h.score = 12.5f;
+  h.threshold = 10.0f;
+  h.center = Eigen::Vector3f(0.1f, 0.2f, 2.0f);
+  h.box.center = h.center;
+  h.box.size = Eigen::Vector3f(0.8f, 0.5f, 0.4f);
+  h.support = 42;
+  r.hypotheses.push_back(h);
+  h.category = "dining_chair";
+  h.passed_selection = false;
+  r.rejected.push_back(h);
+  r.timings.add("downsample", 3.0);
+  r.timings.add("vote", 1.5);
+  r.input_points = 1000;
+  r.keypoints = 50;
+  return r;
+}
+
+uint32_t bigEndian(const std::string& bytes, size_t at) {
+  uint32_t v = 0;
+  for (size_t i = 0; i < 4; ++i) v = v << 8 | static_cast<uint8_t>(bytes[at + i]);
+  return v;
+}
+
+TEST(Report, JsonHasTheHypothesisFields) {
+  const nlohmann::json j = toJson(sampleResult());
+  ASSERT_EQ(j["hypotheses"].size(), 1u);
+  const auto& h = j["hypotheses"][0];
+  EXPECT_EQ(h["category"], "couch");
+  EXPECT_FLOAT_EQ(h["score"].get<float>(), 12.5f);
+  EXPECT_FLOAT_EQ(h["threshold"].get<float>(), 10.0f);
+  EXPECT_FLOAT_EQ(h["center"][2].get<float>(), 2.0f);
+  EXPECT_FLOAT_EQ(h["box"]["size"][0].get<float>(), 0.8f);
+  EXPECT_EQ(h["box"]["rotation_wxyz"].size(), 4u);
+  EXPECT_EQ(h["support"], 42);
+  EXPECT_EQ(h["passed_selection"], true);
+  EXPECT_EQ(j["rejected"][0]["passed_selection"], false);
+  EXPECT_EQ(j["timings_ms"][1]["stage"], "vote");
+  EXPECT_EQ(j["input_points"], 1000);
+  EXPECT_EQ(j["keypoints"], 50);
+}
+
+TEST(Report, TableListsEveryHypothesis) {
+  const std::string table = hypothesesTable(sampleResult(), true);
+  EXPECT_NE(table.find("couch"), std::string::npos);
+  EXPECT_NE(table.find("12.500"), std::string::npos);
+  EXPECT_NE(table.find("dining_chair"), std::string::npos);
+  EXPECT_NE(table.find("rejected"), std::string::npos);
+  EXPECT_NE(hypothesesTable(RecognitionResult{}).find("no hypotheses"), std::string::npos);
+}
+
+TEST(Report, PictureIsAPngOfTheRequestedSizeWithTheBoxDrawn) {
+  Scene scene;  // a wall 2 m in front of a sensor at the origin looking along +z
+  for (float x = -1; x <= 1; x += 0.01f)
+    for (float y = -0.8f; y <= 0.8f; y += 0.01f) scene.cloud->push_back(PointT(x, y, 2.0f, 0, 0, 0));
+  PictureParams params;
+  params.width = 320;
+  params.height = 240;
+  params.fx = params.fy = 262.5f;
+  params.cx = 159.5f;
+  params.cy = 119.5f;
+  const std::string png = renderPicture(scene, sampleResult().hypotheses, params);
+  ASSERT_GT(png.size(), 33u);
+  EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
+  EXPECT_EQ(png.substr(12, 4), "IHDR");
+  EXPECT_EQ(bigEndian(png, 16), 320u);
+  EXPECT_EQ(bigEndian(png, 20), 240u);
+  // The box adds the category colour to an otherwise grey picture, so it changes the bytes.
+  EXPECT_NE(png, renderPicture(scene, {}, params));
+
+  const std::string path = ::testing::TempDir() + "/report_test_picture.png";
+  savePicture(scene, sampleResult().hypotheses, path, params);
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream bytes;
+  bytes << in.rdbuf();
+  EXPECT_EQ(bytes.str(), png);
+  std::remove(path.c_str());
+}
+
+TEST(Report, DebugPlyHoldsKeypointsVotesAndCentres) {
+  Model model;
+  model.categories.resize(1);
+  model.categories[0].name = "couch";
+  RecognitionResult r = sampleResult();
+  r.keypoint_positions = {Eigen::Vector3f::Zero(), Eigen::Vector3f::Ones()};
+  r.votes = {{Eigen::Vector3f(0.1f, 0.2f, 2.0f), 0.5f, 0, 0}, {Eigen::Vector3f(0.1f, 0.2f, 2.1f), 1.0f, 1, 0}};
+  const std::string path = ::testing::TempDir() + "/report_test_debug.ply";
+  saveDebugPly(model, r, path);
+  std::ifstream in(path, std::ios::binary);
+  std::stringstream text;
+  text << in.rdbuf();
+  EXPECT_NE(text.str().find("element vertex 5"), std::string::npos);  // 2 keypoints + 2 votes + 1 centre
+  std::remove(path.c_str());
+}
+
+TEST(Report, CategoryColoursAreStable) {
+  EXPECT_EQ(categoryColor("couch"), categoryColor("couch"));
+  EXPECT_NE(categoryColor("couch"), categoryColor("dining_table"));
+}
+
+}  // namespace
+}  // namespace ism
