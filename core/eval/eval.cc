@@ -1,0 +1,187 @@
+#include "core/eval/eval.h"
+
+#include <algorithm>
+#include <chrono>
+#include <iterator>
+
+#include "core/common/error.h"
+
+namespace ism {
+namespace {
+
+double secondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+float thresholdFor(const CategoryModel& category, const Strategy& strategy) {
+  auto it = category.thresholds.find({strategy.codebook, strategy.activation.strategy, strategy.weighting});
+  if (it == category.thresholds.end()) {
+    throw Error(ErrorCode::kInvalidInput, "model has no detection threshold for category '" + category.name +
+                                              "' and combination '" + strategyName(strategy) + "'");
+  }
+  return it->second;
+}
+
+int indexOf(const std::vector<std::string>& names, const std::string& name) {
+  auto it = std::find(names.begin(), names.end(), name);
+  return it == names.end() ? -1 : static_cast<int>(it - names.begin());
+}
+
+CountTable zeroTable(std::vector<std::string> rows, std::vector<std::string> cols) {
+  CountTable table{std::move(rows), std::move(cols), {}};
+  table.counts.assign(table.rows.size(), std::vector<int>(table.cols.size(), 0));
+  return table;
+}
+
+}  // namespace
+
+std::string strategyName(const Strategy& strategy) {
+  std::string activation = strategy.activation.strategy == ActivationStrategy::kKnn
+                               ? std::to_string(strategy.activation.k) + "nn"
+                               : std::string("cutoff");
+  const char* weighting = strategy.weighting == VoteWeighting::kCategorization ? "cw"
+                          : strategy.weighting == VoteWeighting::kLocalization ? "lw"
+                                                                               : "aw";
+  const char* codebook = strategy.codebook == CodebookType::kGlobal ? "global" : "separated";
+  return std::string(codebook) + " " + activation + "+" + weighting;
+}
+
+std::vector<NamedStrategy> seedCombinations(const Model& model) {
+  std::vector<NamedStrategy> out;
+  for (CodebookType codebook : {CodebookType::kGlobal, CodebookType::kSeparated}) {
+    if (!model.has(codebook)) continue;
+    for (auto [activation, weighting] : {std::pair{model.trained_knn, VoteWeighting::kLocalization},
+                                         std::pair{model.trained_cutoff, VoteWeighting::kLocalization},
+                                         std::pair{model.trained_knn, VoteWeighting::kActivation}}) {
+      Strategy strategy{codebook, activation, weighting};
+      out.push_back({strategyName(strategy), strategy});
+    }
+  }
+  return out;
+}
+
+std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features,
+                                              const Strategy& strategy) {
+  std::vector<Hypothesis> out;
+  if (features.size() == 0) return out;
+  const bool global = strategy.codebook == CodebookType::kGlobal;
+  if (!model.has(strategy.codebook)) {
+    throw Error(ErrorCode::kInvalidInput,
+                std::string("model was trained without the ") + toString(strategy.codebook) + " codebook");
+  }
+  // The global codebook's activations serve every category.
+  std::vector<Activation> activations;
+  if (global) activations = model.global_codebook->activate(features.descriptors, strategy.activation);
+  for (size_t c = 0; c < model.categories.size(); ++c) {
+    const CategoryModel& category = model.categories[c];
+    if (!global) {
+      if (!category.own_codebook) {
+        throw Error(ErrorCode::kInvalidInput, "model has no separated codebook for category '" + category.name + "'");
+      }
+      activations = category.own_codebook->activate(features.descriptors, strategy.activation);
+    }
+    const float threshold = thresholdFor(category, strategy);
+    auto votes = castVotes(model, static_cast<int>(c), features, activations, strategy);
+    auto peaks = findPeaks(votes, features, category, threshold);  // box selection already applied
+    std::move(peaks.begin(), peaks.end(), std::back_inserter(out));
+  }
+  std::stable_sort(out.begin(), out.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+  return out;
+}
+
+MeshSplit splitMeshes(const std::vector<TrainingMesh>& meshes, int train_per_category, int test_per_category) {
+  if (train_per_category < 1 || test_per_category < 1) {
+    throw Error(ErrorCode::kInvalidInput, "need at least 1 training and 1 test mesh per category, got " +
+                                              std::to_string(train_per_category) + " and " +
+                                              std::to_string(test_per_category));
+  }
+  std::vector<std::string> categories;
+  for (const auto& m : meshes) {
+    if (indexOf(categories, m.category) < 0) categories.push_back(m.category);
+  }
+  MeshSplit split;
+  for (const auto& category : categories) {
+    std::vector<TrainingMesh> own;
+    std::copy_if(meshes.begin(), meshes.end(), std::back_inserter(own),
+                 [&](const TrainingMesh& m) { return m.category == category; });
+    std::stable_sort(own.begin(), own.end(), [](const auto& a, const auto& b) { return a.path < b.path; });
+    const size_t needed = static_cast<size_t>(train_per_category + test_per_category);
+    if (own.size() < needed) {
+      throw Error(ErrorCode::kInvalidInput, "category '" + category + "' has " + std::to_string(own.size()) +
+                                                " meshes, the split needs " + std::to_string(needed));
+    }
+    split.train.insert(split.train.end(), own.begin(), own.begin() + train_per_category);
+    split.test.insert(split.test.end(), own.begin() + train_per_category, own.begin() + needed);
+  }
+  return split;
+}
+
+int CountTable::at(const std::string& row, const std::string& col) const {
+  int r = indexOf(rows, row), c = indexOf(cols, col);
+  if (r < 0 || c < 0) throw Error(ErrorCode::kNotFound, "no cell (" + row + ", " + col + ") in the table");
+  return counts[r][c];
+}
+
+BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingScan>& test_scans,
+                                const std::vector<NamedStrategy>& strategies) {
+  BaselineResult result;
+  for (const auto& c : model.categories) result.categories.push_back(c.name);
+  result.test_scans = static_cast<int>(test_scans.size());
+  std::vector<std::string> with_none = result.categories;
+  with_none.push_back("none");
+  for (const auto& s : strategies) {
+    result.combinations.push_back(
+        {s.name, zeroTable(result.categories, result.categories), zeroTable(result.categories, with_none), 0, 0});
+  }
+  for (const TrainingScan& scan : test_scans) {
+    const int row = indexOf(result.categories, scan.category);
+    if (row < 0) {
+      throw Error(ErrorCode::kInvalidInput, "test scan of category '" + scan.category + "' (mesh " +
+                                                std::to_string(scan.model_index) + ") is not in the model");
+    }
+    for (size_t s = 0; s < strategies.size(); ++s) {
+      BaselineCombination& combination = result.combinations[s];
+      auto start = std::chrono::steady_clock::now();
+      auto hypotheses = hypothesesForFeatures(model, scan.features, strategies[s].strategy);
+      combination.recognition_ms += 1000.0 * secondsSince(start);
+      std::vector<bool> generated(result.categories.size(), false);
+      int best = static_cast<int>(result.categories.size());  // "none"
+      for (const Hypothesis& h : hypotheses) {  // best first
+        const int col = indexOf(result.categories, h.category);
+        generated[col] = true;
+        if (h.passed_selection && best == static_cast<int>(result.categories.size())) best = col;
+      }
+      for (size_t col = 0; col < generated.size(); ++col) combination.generated.counts[row][col] += generated[col];
+      ++combination.confusion.counts[row][best];
+    }
+  }
+  for (auto& combination : result.combinations) {
+    int correct = 0;
+    for (size_t r = 0; r < result.categories.size(); ++r) correct += combination.confusion.counts[r][r];
+    combination.accuracy = test_scans.empty() ? 0.0 : static_cast<double>(correct) / test_scans.size();
+  }
+  return result;
+}
+
+BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params) {
+  auto start = std::chrono::steady_clock::now();
+  std::vector<TrainingScan> training_scans = scanMeshes(split.train, params);
+  std::vector<TrainingScan> test_scans = scanMeshes(split.test, params);
+  const double scan_seconds = secondsSince(start);
+
+  std::vector<std::string> categories;
+  for (const auto& m : split.train) {
+    if (indexOf(categories, m.category) < 0) categories.push_back(m.category);
+  }
+  start = std::chrono::steady_clock::now();
+  Model model = trainFromScans(training_scans, categories, params);
+  const double train_seconds = secondsSince(start);
+
+  BaselineResult result = evaluateBaseline(model, test_scans, seedCombinations(model));
+  result.training_scans = static_cast<int>(training_scans.size());
+  result.scan_seconds = scan_seconds;
+  result.train_seconds = train_seconds;
+  return result;
+}
+
+}  // namespace ism

@@ -1,0 +1,224 @@
+#pragma once
+// Evaluation as in the seed (../shared/docs/ALGORITHM.md, "Evaluation protocol of the seed"):
+// (a) the baseline on synthetic scans: "hypothesis generated" tables and confusion matrices
+//     for each codebook x activation x weighting combination the seed compared;
+// (b) real scenes with hand-marked centres: TP/FP/FN, the seed's recognition rate
+//     r = TP / (#objects + FP) and VOC-style average precision over the score.
+// The front end runs once per scan or scene; every combination is evaluated on its features.
+#include <array>
+#include <functional>
+#include <map>
+#include <string>
+#include <vector>
+
+#include "core/recognition/recognizer.h"
+#include "core/training/trainer.h"
+
+namespace ism {
+
+using ProgressFn = std::function<void(const std::string&)>;
+
+struct NamedStrategy {
+  std::string name;  // "global 1nn+lw", as printed in the tables
+  Strategy strategy;
+};
+
+// "global cutoff+aw": codebook, activation (k-NN as "<k>nn") and weighting.
+std::string strategyName(const Strategy& strategy);
+// The six combinations of the seed (global/separated x 1NN+LW, cutoff+LW, 1NN+AW), with the
+// model's trained activation parameters; combinations whose codebook the model lacks are left out.
+std::vector<NamedStrategy> seedCombinations(const Model& model);
+
+// Recognition on already extracted features: every peak above the model's threshold for the
+// strategy, for every category (passed_selection says whether it passed the box test), best first.
+// Throws Error(kInvalidInput) when the model lacks the strategy's codebook or threshold.
+std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features,
+                                              const Strategy& strategy);
+
+// ---------------------------------------------------------------------------------------------
+// (a) Baseline on synthetic scans
+
+struct MeshSplit {
+  std::vector<TrainingMesh> train;
+  std::vector<TrainingMesh> test;
+};
+
+// Per category (in order of first appearance), meshes sorted by path: the first
+// `train_per_category` train, the next `test_per_category` test. Throws Error(kInvalidInput)
+// naming the category when it has fewer meshes than that.
+MeshSplit splitMeshes(const std::vector<TrainingMesh>& meshes, int train_per_category, int test_per_category);
+
+// Counts with named rows and columns (row-major).
+struct CountTable {
+  std::vector<std::string> rows;
+  std::vector<std::string> cols;
+  std::vector<std::vector<int>> counts;
+  int at(const std::string& row, const std::string& col) const;
+};
+
+struct BaselineCombination {
+  std::string strategy;
+  // Test category x model category: test scans where the model category produced at least one
+  // hypothesis above its threshold, before box selection.
+  CountTable generated;
+  // Test category x (model category | "none"): the category of the best-scoring hypothesis
+  // that passed box selection.
+  CountTable confusion;
+  double accuracy = 0;  // diagonal of `confusion` / test scans
+  double recognition_ms = 0;  // all test scans, this combination
+};
+
+struct BaselineResult {
+  std::vector<std::string> categories;  // model order; also the test rows
+  int training_scans = 0;
+  int test_scans = 0;
+  double scan_seconds = 0;   // virtual scanning + front end, training and test meshes
+  double train_seconds = 0;  // codebooks, votes, thresholds, boxes
+  std::vector<BaselineCombination> combinations;
+};
+
+// Evaluates `strategies` on test scans (one front end run per scan). Throws Error(kInvalidInput)
+// when a test scan's category is not one of the model's.
+BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingScan>& test_scans,
+                                const std::vector<NamedStrategy>& strategies);
+
+// Scans train and test meshes, trains once from the training scans and evaluates the seed's
+// combinations.
+BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params);
+
+// ---------------------------------------------------------------------------------------------
+// (b) Real scenes with ground truth (../shared/docs/DATASETS.md format)
+
+struct AnnotatedScene {
+  std::string name;
+  std::string json_path;
+  std::string cloud_path;  // "cloud" of the JSON (default NAME.pcd), next to the JSON
+  std::string frame;       // the JSON's "frame": how to read the coordinates
+  std::vector<GroundTruthObject> objects;
+};
+
+// Throws Error(kNotFound) when the JSON or its cloud is missing, Error(kInvalidInput) naming the
+// file and field when the JSON is malformed or lacks "objects".
+AnnotatedScene readSceneAnnotation(const std::string& json_path);
+// Folders (every *.json inside), .json files, or clouds (.pcd/.ply -> the .json beside them);
+// the JSON paths in a stable order. Throws Error(kNotFound) for a path without ground truth.
+std::vector<std::string> findSceneAnnotations(const std::vector<std::string>& inputs);
+
+// Model category -> ground-truth categories it may match. Model categories without an entry
+// match the ground-truth category of the same name.
+using CategoryMapping = std::map<std::string, std::vector<std::string>>;
+// office_chair, dining_chair -> chair; dining_table -> table | desk; couch -> sofa.
+CategoryMapping defaultCategoryMapping();
+// "model=gt1|gt2" sets (replaces) one entry. Throws Error(kInvalidInput) naming the text.
+void addCategoryMapping(CategoryMapping& mapping, const std::string& spec);
+
+// Normals need a sensor position. Single frames (Kinect, SUN RGB-D) have the camera at the
+// origin of their frame; fused reconstructions (ScanNet) have none, so the viewpoint is put in
+// the middle of the room at eye height: the cloud's x-y centroid, `eye_height` above the floor
+// (the 1st percentile of z), so that floors face up and walls face into the room.
+enum class ViewpointPolicy {
+  kAuto,            // origin when the JSON's "frame" mentions a camera, else kRoomCentre
+  kOrigin,
+  kRoomCentre,
+};
+ViewpointPolicy parseViewpointPolicy(const std::string& s);  // "auto", "origin", "room-centre"
+Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Cloud& cloud, ViewpointPolicy policy,
+                               float eye_height = 1.5f);
+
+// One hypothesis as the matching rule sees it.
+struct ScoredDetection {
+  float score = 0;
+  Eigen::Vector3f position = Eigen::Vector3f::Zero();  // centroid of the supporting keypoints
+  float radius = 0;  // 1/4 of the category's maximum box edge
+};
+enum class MatchLabel {
+  kTruePositive,
+  kFalsePositive,
+  kMergedFalsePositive,  // within `radius` of an FP already counted: counts once with it
+};
+// The seed's rule, greedy by descending score: a detection is a TP when an object not matched
+// yet lies within its radius (the nearest one is taken), else an FP. Labels are index-aligned
+// with `detections`.
+std::vector<MatchLabel> matchDetections(const std::vector<ScoredDetection>& detections,
+                                        const std::vector<Eigen::Vector3f>& objects);
+
+// VOC-style (all points) AP of ranked detections (score, is TP) against `objects` ground-truth
+// objects: area under the precision envelope over recall. NaN when there are no objects.
+double averagePrecision(std::vector<std::pair<float, bool>> ranked, int objects);
+
+// Counts of one ground-truth class (e.g. "chair"), fed by every model category mapped onto it.
+struct ClassScore {
+  std::string name;                           // ground-truth categories joined by '|'
+  std::vector<std::string> model_categories;  // model categories mapped onto it
+  int objects = 0, tp = 0, fp = 0, fn = 0;
+  double rate = 0;  // TP / (objects + FP); NaN when both are zero
+  double ap = 0;    // NaN without objects
+};
+
+// Matches hypotheses against ground truth scene by scene and accumulates per class. Only the
+// model's category names and box statistics (maximum edge) are used.
+class ClassScorer {
+ public:
+  ClassScorer(const Model& model, const CategoryMapping& mapping);
+  // Hypotheses that failed box selection are ignored. Returns this scene's {TP, FP, FN} summed
+  // over classes; ground-truth objects of unmapped categories ("other") are ignored.
+  std::array<int, 3> addScene(const std::vector<GroundTruthObject>& objects,
+                              const std::vector<Hypothesis>& hypotheses);
+  std::vector<ClassScore> scores() const;
+
+ private:
+  struct Class {
+    std::vector<std::string> gt_categories;
+    std::vector<std::string> model_categories;
+    int objects = 0, tp = 0, fp = 0;
+    std::vector<std::pair<float, bool>> ranked;  // counted detections: merged FPs count once
+  };
+  std::vector<Class> classes_;
+  std::map<std::string, float> radius_;  // model category -> 1/4 of its maximum box edge
+};
+
+struct RealCombination {
+  std::string strategy;
+  std::vector<ClassScore> classes;
+  std::vector<std::array<int, 3>> scene_tp_fp_fn;  // per scene, summed over classes
+};
+
+struct SceneRun {
+  std::string name;
+  size_t points = 0;
+  size_t surface_points = 0;
+  size_t keypoints = 0;
+  Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
+  double load_ms = 0;
+  double front_end_ms = 0;
+  std::vector<double> recognition_ms;  // per strategy
+};
+
+struct RealEvalParams {
+  std::vector<NamedStrategy> strategies;
+  CategoryMapping mapping = defaultCategoryMapping();
+  ViewpointPolicy viewpoint = ViewpointPolicy::kAuto;
+  float eye_height = 1.5f;
+  ProgressFn progress;  // one line per scene; may be empty
+};
+
+struct RealResult {
+  std::vector<SceneRun> scenes;
+  std::vector<RealCombination> combinations;  // in the order of params.strategies
+};
+
+// Counts accumulate over all scenes; AP ranks all hypotheses of all scenes of a class by score.
+RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedScene>& scenes,
+                              const RealEvalParams& params);
+
+// ---------------------------------------------------------------------------------------------
+// Output
+
+// Aligned text tables for a terminal.
+std::string formatBaseline(const BaselineResult& result);
+std::string formatReal(const RealResult& result);
+// JSON documents (NaN as null).
+std::string baselineToJson(const BaselineResult& result);
+std::string realToJson(const RealResult& result);
+
+}  // namespace ism

@@ -1,0 +1,324 @@
+// Real scenes with hand-marked ground truth: annotation parsing, the seed's matching rule,
+// recognition rate and average precision.
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <nlohmann/json.hpp>
+#include <sstream>
+
+#include "core/common/error.h"
+#include "core/eval/eval.h"
+#include "core/io/cloud_io.h"
+
+namespace ism {
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+namespace {
+
+std::string lowercase(std::string s) {
+  std::transform(s.begin(), s.end(), s.begin(), [](unsigned char c) { return std::tolower(c); });
+  return s;
+}
+
+Eigen::Vector3f readVector3(const json& object, const char* field, const std::string& where) {
+  auto it = object.find(field);
+  if (it == object.end() || !it->is_array() || it->size() != 3 ||
+      !std::all_of(it->begin(), it->end(), [](const json& v) { return v.is_number(); })) {
+    throw Error(ErrorCode::kInvalidInput, where + ": \"" + field + "\" must be an array of 3 numbers");
+  }
+  return {(*it)[0].get<float>(), (*it)[1].get<float>(), (*it)[2].get<float>()};
+}
+
+bool contains(const std::vector<std::string>& names, const std::string& name) {
+  return std::find(names.begin(), names.end(), name) != names.end();
+}
+
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+double ratio(int num, int den) {
+  return den == 0 ? std::numeric_limits<double>::quiet_NaN() : static_cast<double>(num) / den;
+}
+
+}  // namespace
+
+AnnotatedScene readSceneAnnotation(const std::string& json_path) {
+  std::ifstream in(json_path);
+  if (!in) throw Error(ErrorCode::kNotFound, "ground truth " + json_path + " cannot be opened");
+  json doc;
+  try {
+    doc = json::parse(in);
+  } catch (const json::exception& e) {
+    throw Error(ErrorCode::kInvalidInput, "ground truth " + json_path + " is not valid JSON: " + e.what());
+  }
+  if (!doc.is_object()) throw Error(ErrorCode::kInvalidInput, "ground truth " + json_path + " is not a JSON object");
+  AnnotatedScene scene;
+  scene.json_path = json_path;
+  const fs::path path(json_path);
+  scene.name = doc.value("scene", path.stem().string());
+  scene.frame = doc.value("frame", "");
+  const std::string cloud = doc.value("cloud", path.stem().string() + ".pcd");
+  scene.cloud_path = (path.parent_path() / cloud).string();
+  auto objects = doc.find("objects");
+  if (objects == doc.end() || !objects->is_array()) {
+    throw Error(ErrorCode::kInvalidInput, "ground truth " + json_path + " has no \"objects\" array");
+  }
+  for (size_t i = 0; i < objects->size(); ++i) {
+    const json& o = (*objects)[i];
+    const std::string where = json_path + ": objects[" + std::to_string(i) + "]";
+    if (!o.is_object() || !o.contains("category") || !o["category"].is_string()) {
+      throw Error(ErrorCode::kInvalidInput, where + " has no \"category\" string");
+    }
+    GroundTruthObject object;
+    object.category = o["category"].get<std::string>();
+    object.center = readVector3(o, "center", where);
+    object.size = o.contains("size") ? readVector3(o, "size", where) : Eigen::Vector3f::Zero();
+    object.yaw = o.value("yaw", 0.0f);
+    scene.objects.push_back(object);
+  }
+  if (!fs::exists(scene.cloud_path)) {
+    throw Error(ErrorCode::kNotFound, "cloud " + scene.cloud_path + " of ground truth " + json_path + " does not exist");
+  }
+  return scene;
+}
+
+std::vector<std::string> findSceneAnnotations(const std::vector<std::string>& inputs) {
+  std::vector<std::string> out;
+  for (const auto& input : inputs) {
+    const fs::path path(input);
+    if (fs::is_directory(path)) {
+      std::vector<std::string> found;
+      for (const auto& entry : fs::directory_iterator(path)) {
+        if (entry.is_regular_file() && lowercase(entry.path().extension().string()) == ".json") {
+          found.push_back(entry.path().string());
+        }
+      }
+      if (found.empty()) throw Error(ErrorCode::kNotFound, "folder " + input + " holds no scene .json files");
+      std::sort(found.begin(), found.end());
+      out.insert(out.end(), found.begin(), found.end());
+      continue;
+    }
+    fs::path json_path = path;
+    if (lowercase(path.extension().string()) != ".json") json_path.replace_extension(".json");
+    if (!fs::exists(json_path)) {
+      throw Error(ErrorCode::kNotFound, "no ground truth for " + input + ": " + json_path.string() + " does not exist");
+    }
+    out.push_back(json_path.string());
+  }
+  return out;
+}
+
+CategoryMapping defaultCategoryMapping() {
+  return {{"office_chair", {"chair"}}, {"dining_chair", {"chair"}}, {"dining_table", {"table", "desk"}},
+          {"couch", {"sofa"}}};
+}
+
+void addCategoryMapping(CategoryMapping& mapping, const std::string& spec) {
+  const auto eq = spec.find('=');
+  if (eq == std::string::npos || eq == 0 || eq + 1 == spec.size()) {
+    throw Error(ErrorCode::kInvalidInput, "category mapping '" + spec + "' is not of the form model=gt1|gt2");
+  }
+  std::vector<std::string> targets;
+  std::stringstream rest(spec.substr(eq + 1));
+  for (std::string target; std::getline(rest, target, '|');) {
+    if (target.empty()) throw Error(ErrorCode::kInvalidInput, "category mapping '" + spec + "' has an empty target");
+    targets.push_back(target);
+  }
+  mapping[spec.substr(0, eq)] = targets;
+}
+
+ViewpointPolicy parseViewpointPolicy(const std::string& s) {
+  if (s == "auto") return ViewpointPolicy::kAuto;
+  if (s == "origin") return ViewpointPolicy::kOrigin;
+  if (s == "room-centre") return ViewpointPolicy::kRoomCentre;
+  throw Error(ErrorCode::kInvalidInput, "viewpoint policy '" + s + "' is not one of auto, origin, room-centre");
+}
+
+Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Cloud& cloud, ViewpointPolicy policy,
+                               float eye_height) {
+  if (policy == ViewpointPolicy::kAuto) {
+    policy = lowercase(annotation.frame).find("camera") != std::string::npos ? ViewpointPolicy::kOrigin
+                                                                            : ViewpointPolicy::kRoomCentre;
+  }
+  if (policy == ViewpointPolicy::kOrigin || cloud.empty()) return Eigen::Vector3f::Zero();
+  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+  std::vector<float> heights;
+  heights.reserve(cloud.size());
+  for (const auto& p : cloud) {
+    sum += p.getVector3fMap().cast<double>();
+    heights.push_back(p.z);
+  }
+  // A low percentile rather than the minimum: reconstructions have stray points below the floor.
+  auto floor = heights.begin() + static_cast<long>(heights.size() / 100);
+  std::nth_element(heights.begin(), floor, heights.end());
+  Eigen::Vector3f centroid = (sum / static_cast<double>(cloud.size())).cast<float>();
+  return {centroid.x(), centroid.y(), *floor + eye_height};
+}
+
+std::vector<MatchLabel> matchDetections(const std::vector<ScoredDetection>& detections,
+                                        const std::vector<Eigen::Vector3f>& objects) {
+  std::vector<size_t> order(detections.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return detections[a].score > detections[b].score; });
+  std::vector<MatchLabel> labels(detections.size(), MatchLabel::kFalsePositive);
+  std::vector<bool> matched(objects.size(), false);
+  std::vector<size_t> counted_fps;
+  for (size_t i : order) {
+    const ScoredDetection& d = detections[i];
+    int nearest = -1;
+    float nearest_distance = d.radius;
+    for (size_t o = 0; o < objects.size(); ++o) {
+      const float distance = (objects[o] - d.position).norm();
+      if (!matched[o] && distance <= nearest_distance) {
+        nearest = static_cast<int>(o);
+        nearest_distance = distance;
+      }
+    }
+    if (nearest >= 0) {
+      matched[nearest] = true;
+      labels[i] = MatchLabel::kTruePositive;
+    } else if (std::any_of(counted_fps.begin(), counted_fps.end(), [&](size_t f) {
+                 return (detections[f].position - d.position).norm() <= d.radius;
+               })) {
+      labels[i] = MatchLabel::kMergedFalsePositive;
+    } else {
+      counted_fps.push_back(i);
+    }
+  }
+  return labels;
+}
+
+double averagePrecision(std::vector<std::pair<float, bool>> ranked, int objects) {
+  if (objects <= 0) return std::numeric_limits<double>::quiet_NaN();
+  std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  std::vector<double> precision(ranked.size());
+  int tp = 0;
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    tp += ranked[i].second;
+    precision[i] = static_cast<double>(tp) / (i + 1);
+  }
+  // Precision envelope: the best precision at this recall or any higher one.
+  for (size_t i = ranked.size(); i-- > 1;) precision[i - 1] = std::max(precision[i - 1], precision[i]);
+  double ap = 0;
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    if (ranked[i].second) ap += precision[i] / objects;  // each TP raises recall by 1/objects
+  }
+  return ap;
+}
+
+ClassScorer::ClassScorer(const Model& model, const CategoryMapping& mapping) {
+  for (const auto& category : model.categories) {
+    radius_[category.name] = category.box.max_edge / 4;
+    auto it = mapping.find(category.name);
+    auto targets = it == mapping.end() ? std::vector<std::string>{category.name} : it->second;
+    auto same = std::find_if(classes_.begin(), classes_.end(),
+                             [&](const Class& c) { return c.gt_categories == targets; });
+    if (same == classes_.end()) {
+      classes_.push_back({targets, {category.name}});
+    } else {
+      same->model_categories.push_back(category.name);
+    }
+  }
+}
+
+std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& objects,
+                                         const std::vector<Hypothesis>& hypotheses) {
+  std::array<int, 3> scene{0, 0, 0};
+  for (Class& c : classes_) {
+    std::vector<Eigen::Vector3f> centres;
+    for (const auto& o : objects) {
+      if (contains(c.gt_categories, o.category)) centres.push_back(o.center);
+    }
+    std::vector<ScoredDetection> detections;
+    for (const Hypothesis& h : hypotheses) {
+      if (!h.passed_selection || !contains(c.model_categories, h.category)) continue;
+      detections.push_back({h.score, h.support_centroid, radius_.at(h.category)});
+    }
+    const auto labels = matchDetections(detections, centres);
+    int tp = 0, fp = 0;
+    for (size_t d = 0; d < detections.size(); ++d) {
+      if (labels[d] == MatchLabel::kMergedFalsePositive) continue;
+      const bool is_tp = labels[d] == MatchLabel::kTruePositive;
+      c.ranked.emplace_back(detections[d].score, is_tp);
+      (is_tp ? tp : fp) += 1;
+    }
+    c.objects += static_cast<int>(centres.size());
+    c.tp += tp;
+    c.fp += fp;
+    scene[0] += tp;
+    scene[1] += fp;
+    scene[2] += static_cast<int>(centres.size()) - tp;
+  }
+  return scene;
+}
+
+std::vector<ClassScore> ClassScorer::scores() const {
+  std::vector<ClassScore> out;
+  for (const Class& c : classes_) {
+    ClassScore score;
+    for (const auto& g : c.gt_categories) score.name += (score.name.empty() ? "" : "|") + g;
+    score.model_categories = c.model_categories;
+    score.objects = c.objects;
+    score.tp = c.tp;
+    score.fp = c.fp;
+    score.fn = c.objects - c.tp;
+    score.rate = ratio(c.tp, c.objects + c.fp);
+    score.ap = averagePrecision(c.ranked, c.objects);
+    out.push_back(score);
+  }
+  return out;
+}
+
+RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedScene>& scenes,
+                              const RealEvalParams& params) {
+  if (params.strategies.empty()) throw Error(ErrorCode::kInvalidInput, "no recognition strategy to evaluate");
+  std::vector<ClassScorer> scorers(params.strategies.size(), ClassScorer(model, params.mapping));
+  RealResult result;
+  for (const auto& s : params.strategies) result.combinations.push_back({s.name, {}, {}});
+
+  for (const AnnotatedScene& annotation : scenes) {
+    SceneRun run;
+    run.name = annotation.name;
+    auto start = std::chrono::steady_clock::now();
+    Scene scene = loadCloudFile(annotation.cloud_path);
+    run.load_ms = millisecondsSince(start);
+    run.points = scene.cloud->size();
+    run.viewpoint = sceneViewpoint(annotation, *scene.cloud, params.viewpoint, params.eye_height);
+    scene.sensor_origin = run.viewpoint;
+
+    start = std::chrono::steady_clock::now();
+    FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled);
+    run.front_end_ms = millisecondsSince(start);
+    run.surface_points = front.surface ? front.surface->size() : 0;
+    run.keypoints = front.features.size();
+
+    double recognition_ms = 0;
+    for (size_t s = 0; s < params.strategies.size(); ++s) {
+      start = std::chrono::steady_clock::now();
+      auto hypotheses = hypothesesForFeatures(model, front.features, params.strategies[s].strategy);
+      run.recognition_ms.push_back(millisecondsSince(start));
+      recognition_ms += run.recognition_ms.back();
+      result.combinations[s].scene_tp_fp_fn.push_back(scorers[s].addScene(annotation.objects, hypotheses));
+    }
+    if (params.progress) {
+      std::ostringstream line;
+      line.setf(std::ios::fixed);
+      line.precision(0);
+      line << "scene " << run.name << ": " << run.points << " points, " << run.keypoints << " keypoints, load "
+           << run.load_ms << " ms, front end " << run.front_end_ms << " ms, recognition " << recognition_ms
+           << " ms (" << params.strategies.size() << " combinations)";
+      params.progress(line.str());
+    }
+    result.scenes.push_back(std::move(run));
+  }
+  for (size_t s = 0; s < params.strategies.size(); ++s) result.combinations[s].classes = scorers[s].scores();
+  return result;
+}
+
+}  // namespace ism
