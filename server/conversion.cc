@@ -1,0 +1,270 @@
+#include "server/conversion.h"
+
+#include <pcl/common/transforms.h>
+
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "core/common/error.h"
+#include "core/io/cloud_io.h"
+
+namespace ism::server {
+namespace {
+
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "wire formats are little-endian");
+
+Error invalid(const std::string& message) { return Error(ErrorCode::kInvalidInput, message); }
+
+// Protobuf gives no alignment guarantee for bytes fields, so copy before reading as T.
+template <typename T>
+std::vector<T> copyPacked(const std::string& bytes) {
+  std::vector<T> values(bytes.size() / sizeof(T));
+  std::memcpy(values.data(), bytes.data(), values.size() * sizeof(T));
+  return values;
+}
+
+void checkSize(size_t count, size_t limit, const char* what) {
+  if (count > limit) {
+    throw Error(ErrorCode::kResourceExhausted, std::string(what) + " has " + std::to_string(count) +
+                                                   ", more than the server's limit of " + std::to_string(limit));
+  }
+}
+
+Scene cloudScene(const v1::PointCloud& cloud, const InputLimits& limits) {
+  if (cloud.xyz().empty()) throw invalid("scene.cloud.xyz is empty: the cloud has no points");
+  if (cloud.xyz().size() % 12 != 0) {
+    throw invalid("scene.cloud.xyz has " + std::to_string(cloud.xyz().size()) +
+                  " bytes, not a multiple of 12 (float32 x, y, z per point)");
+  }
+  const size_t count = cloud.xyz().size() / 12;
+  checkSize(count, limits.max_points, "scene.cloud points");
+  if (!cloud.rgb().empty() && cloud.rgb().size() != 3 * count) {
+    throw invalid("scene.cloud.rgb has " + std::to_string(cloud.rgb().size()) + " bytes but xyz has " +
+                  std::to_string(count) + " points (expected " + std::to_string(3 * count) + " bytes)");
+  }
+  uint64_t width = cloud.width(), height = cloud.height();
+  if (width == 0 && height == 0) {
+    width = count;
+    height = 1;
+  } else if (width * height != count) {
+    throw invalid("scene.cloud is declared " + std::to_string(width) + "x" + std::to_string(height) + " = " +
+                  std::to_string(width * height) + " points but xyz has " + std::to_string(count));
+  }
+  const auto xyz = copyPacked<float>(cloud.xyz());
+  return sceneFromPacked(xyz.data(), count,
+                         cloud.rgb().empty() ? nullptr : reinterpret_cast<const uint8_t*>(cloud.rgb().data()),
+                         static_cast<int>(width), static_cast<int>(height));
+}
+
+DepthIntrinsics intrinsicsFromProto(const v1::CameraIntrinsics& in) {
+  auto positive = [](float v, const char* name) {
+    if (!(std::isfinite(v) && v > 0)) {
+      throw invalid(std::string("scene.depth.intrinsics.") + name + " must be > 0, got " + std::to_string(v));
+    }
+    return v;
+  };
+  auto finite = [](float v, const char* name) {
+    if (!std::isfinite(v)) throw invalid(std::string("scene.depth.intrinsics.") + name + " is not finite");
+    return v;
+  };
+  DepthIntrinsics out;
+  out.fx = positive(in.fx(), "fx");
+  out.fy = positive(in.fy(), "fy");
+  out.cx = finite(in.cx(), "cx");
+  out.cy = finite(in.cy(), "cy");
+  out.depth_scale = positive(in.depth_scale(), "depth_scale");
+  return out;
+}
+
+// Width and height from the PNG header, so an oversized image is refused before it is inflated.
+std::pair<uint32_t, uint32_t> pngSize(const std::string& png) {
+  static const char kSignature[] = "\x89PNG\r\n\x1a\n";
+  if (png.size() < 24 || png.compare(0, 8, kSignature, 8) != 0 || png.compare(12, 4, "IHDR") != 0) {
+    throw invalid("scene.depth.data (" + std::to_string(png.size()) + " bytes) is not a PNG image");
+  }
+  auto be32 = [&](size_t at) {
+    const auto* b = reinterpret_cast<const unsigned char*>(png.data()) + at;
+    return uint32_t(b[0]) << 24 | uint32_t(b[1]) << 16 | uint32_t(b[2]) << 8 | uint32_t(b[3]);
+  };
+  return {be32(16), be32(20)};
+}
+
+Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
+  const DepthIntrinsics intrinsics = intrinsicsFromProto(depth.intrinsics());
+  const uint64_t width = depth.width(), height = depth.height();
+  switch (depth.encoding()) {
+    case v1::DEPTH_ENCODING_RAW_UINT16_LE: {
+      if (width == 0 || height == 0) {
+        throw invalid("scene.depth.width and height are required for RAW_UINT16_LE (got " + std::to_string(width) +
+                      "x" + std::to_string(height) + ")");
+      }
+      checkSize(width * height, limits.max_pixels, "scene.depth pixels");
+      if (depth.data().size() != 2 * width * height) {
+        throw invalid("scene.depth.data has " + std::to_string(depth.data().size()) + " bytes but a " +
+                      std::to_string(width) + "x" + std::to_string(height) + " uint16 image needs " +
+                      std::to_string(2 * width * height));
+      }
+      const auto pixels = copyPacked<uint16_t>(depth.data());
+      return depthToScene(pixels.data(), static_cast<int>(width), static_cast<int>(height), intrinsics, "request");
+    }
+    case v1::DEPTH_ENCODING_PNG: {
+      const auto [png_width, png_height] = pngSize(depth.data());
+      checkSize(uint64_t(png_width) * png_height, limits.max_pixels, "scene.depth PNG pixels");
+      if ((width != 0 || height != 0) && (width != png_width || height != png_height)) {
+        throw invalid("scene.depth is declared " + std::to_string(width) + "x" + std::to_string(height) +
+                      " but the PNG is " + std::to_string(png_width) + "x" + std::to_string(png_height));
+      }
+      return decodeDepthPng(depth.data(), intrinsics, "request PNG");
+    }
+    case v1::DEPTH_ENCODING_UNSPECIFIED:
+      throw invalid("scene.depth.encoding is unset: use DEPTH_ENCODING_RAW_UINT16_LE or DEPTH_ENCODING_PNG");
+    default:
+      throw invalid("scene.depth.encoding " + std::to_string(depth.encoding()) + " is not supported");
+  }
+}
+
+Eigen::Vector3f vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
+
+void setVec(const Eigen::Vector3f& v, v1::Vec3* out) {
+  out->set_x(v.x());
+  out->set_y(v.y());
+  out->set_z(v.z());
+}
+
+void setQuat(const Eigen::Quaternionf& q, v1::Quaternion* out) {
+  out->set_w(q.w());
+  out->set_x(q.x());
+  out->set_y(q.y());
+  out->set_z(q.z());
+}
+
+}  // namespace
+
+Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits) {
+  const Eigen::Vector3f origin = vec(scene.sensor_origin());
+  const auto& q = scene.sensor_orientation();
+  Eigen::Quaternionf orientation(q.w(), q.x(), q.y(), q.z());
+  if (!origin.allFinite() || !orientation.coeffs().allFinite()) {
+    throw invalid("scene.sensor_origin / sensor_orientation contain NaN or Inf");
+  }
+  if (orientation.coeffs().isZero()) {
+    orientation = Eigen::Quaternionf::Identity();
+  } else {
+    orientation.normalize();
+  }
+
+  Scene out;
+  switch (scene.data_case()) {
+    case v1::Scene::kCloud:
+      out = cloudScene(scene.cloud(), limits);
+      break;
+    case v1::Scene::kDepth: {
+      out = depthScene(scene.depth(), limits);
+      // The image's points are in the camera frame: move them where the caller wants answers.
+      Eigen::Affine3f pose = Eigen::Translation3f(origin) * orientation;
+      if (!pose.matrix().isIdentity()) pcl::transformPointCloud(*out.cloud, *out.cloud, pose);
+      break;
+    }
+    case v1::Scene::DATA_NOT_SET:
+      throw invalid("scene has neither a cloud nor a depth image");
+  }
+  out.sensor_origin = origin;
+  out.sensor_orientation = orientation;
+  out.source = "request";
+  return out;
+}
+
+RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Model& model) {
+  RecognitionOptions out;
+  for (const auto& category : in.categories()) {
+    if (model.find(category) == nullptr) {
+      std::string known;
+      for (const auto& c : model.categories) known += (known.empty() ? "" : ", ") + c.name;
+      throw Error(ErrorCode::kNotFound, "unknown category '" + category + "' (the model has: " + known + ")");
+    }
+    out.categories.push_back(category);
+  }
+  if (in.has_min_score()) {
+    if (!std::isfinite(in.min_score())) throw invalid("options.min_score is not finite");
+    out.min_score = in.min_score();
+  }
+  out.max_hypotheses = static_cast<int>(in.max_hypotheses());
+  out.box_selection = in.has_box_selection() ? in.box_selection() : true;
+  out.return_keypoints = in.return_keypoints();
+
+  const auto& s = in.strategy();
+  switch (s.codebook()) {
+    case v1::CODEBOOK_TYPE_UNSPECIFIED:
+    case v1::CODEBOOK_TYPE_GLOBAL:
+      out.strategy.codebook = CodebookType::kGlobal;
+      break;
+    case v1::CODEBOOK_TYPE_SEPARATED:
+      out.strategy.codebook = CodebookType::kSeparated;
+      break;
+    default:
+      throw invalid("options.strategy.codebook " + std::to_string(s.codebook()) + " is not supported");
+  }
+  switch (s.activation()) {
+    case v1::ACTIVATION_STRATEGY_UNSPECIFIED:
+    case v1::ACTIVATION_STRATEGY_KNN:
+      if (s.k() < 0) throw invalid("options.strategy.k must be >= 0, got " + std::to_string(s.k()));
+      out.strategy.activation = model.trained_knn;
+      if (s.k() > 0) out.strategy.activation.k = s.k();
+      break;
+    case v1::ACTIVATION_STRATEGY_CUTOFF:
+      if (!(s.cutoff() >= 0 && std::isfinite(s.cutoff()))) {
+        throw invalid("options.strategy.cutoff must be >= 0, got " + std::to_string(s.cutoff()));
+      }
+      out.strategy.activation = model.trained_cutoff;
+      if (s.cutoff() > 0) out.strategy.activation.cutoff = s.cutoff();
+      break;
+    default:
+      throw invalid("options.strategy.activation " + std::to_string(s.activation()) + " is not supported");
+  }
+  switch (s.weighting()) {
+    case v1::VOTE_WEIGHTING_UNSPECIFIED:
+    case v1::VOTE_WEIGHTING_LOCALIZATION:
+      out.strategy.weighting = VoteWeighting::kLocalization;
+      break;
+    case v1::VOTE_WEIGHTING_CATEGORIZATION:
+      out.strategy.weighting = VoteWeighting::kCategorization;
+      break;
+    case v1::VOTE_WEIGHTING_ACTIVATION:
+      out.strategy.weighting = VoteWeighting::kActivation;
+      break;
+    default:
+      throw invalid("options.strategy.weighting " + std::to_string(s.weighting()) + " is not supported");
+  }
+  return out;
+}
+
+void resultToProto(const RecognitionResult& result, const LoadedModel& model, v1::RecognitionResult* out) {
+  for (const auto& h : result.hypotheses) {
+    auto* hp = out->add_hypotheses();
+    hp->set_category(h.category);
+    hp->set_score(h.score);
+    hp->set_threshold(h.threshold);
+    setVec(h.center, hp->mutable_center());
+    setVec(h.box.center, hp->mutable_box()->mutable_center());
+    setVec(h.box.size, hp->mutable_box()->mutable_size());
+    setQuat(h.box.rotation, hp->mutable_box()->mutable_rotation());
+    hp->set_support(h.support);
+    setVec(h.support_centroid, hp->mutable_support_centroid());
+    hp->set_passed_selection(h.passed_selection);
+    for (const auto& p : h.support_keypoints) setVec(p, hp->add_support_keypoints());
+  }
+  for (const auto& [stage, ms] : result.timings.stages) {
+    auto* t = out->add_timings();
+    t->set_stage(stage);
+    t->set_ms(ms);
+  }
+  out->set_total_ms(result.timings.total());
+  out->set_input_points(result.input_points);
+  out->set_surface_points(result.surface_points);
+  out->set_keypoints(result.keypoints);
+  out->set_model_name(model.name);
+  out->set_model_version(model.info.version());
+}
+
+}  // namespace ism::server

@@ -1,0 +1,190 @@
+#include "server/frame_stream.h"
+
+#include <spdlog/spdlog.h>
+
+#include "server/status_mapping.h"
+
+namespace ism::server {
+
+FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context)
+    : service_(service),
+      context_(context),
+      stream_id_(requestId("")),
+      should_stop_(callStopper(context, &cancelled_)) {
+  service_.metrics.streamOpened();
+  spdlog::info("[{}] stream opened by {}", stream_id_, context_->peer());
+  reading_ = true;
+  StartRead(&read_buffer_);
+}
+
+void FrameStream::act(const Actions& actions) {
+  if (actions.read) StartRead(&read_buffer_);
+  if (actions.write != nullptr) StartWrite(actions.write);
+  if (actions.finish) Finish(final_status_);
+}
+
+void FrameStream::OnReadDone(bool ok) {
+  Actions actions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    reading_ = false;
+    if (!ok) {
+      reads_done_ = true;  // the client half-closed (or the call broke: OnCancel says which)
+    } else {
+      if (read_buffer_.has_settings()) {
+        auto settings = std::make_shared<Settings>();
+        settings->options = read_buffer_.settings().options();
+        switch (read_buffer_.settings().policy()) {
+          case v1::BACKPRESSURE_POLICY_UNSPECIFIED:
+          case v1::BACKPRESSURE_POLICY_EVERY_FRAME:
+            break;
+          case v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS:
+            settings->policy = v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS;
+            break;
+          default:
+            failure_ = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                    "settings.policy " + std::to_string(read_buffer_.settings().policy()) +
+                                        " (frame " + std::to_string(read_buffer_.frame_id()) + ") is not supported");
+        }
+        settings_ = std::move(settings);
+      }
+      if (failure_.ok() && read_buffer_.has_scene()) {
+        if (settings_->policy == v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS && !queued_.empty()) {
+          for (const auto& frame : queued_) skipped_.push_back(frame.request.frame_id());
+          service_.metrics.framesSkipped(queued_.size());
+          queued_.clear();
+        }
+        queued_.push_back({std::move(read_buffer_), settings_, std::chrono::steady_clock::now()});
+        ++frames_;
+      }
+      read_buffer_.Clear();
+      scheduleLocked();
+      resumeReadingLocked(&actions);
+    }
+    finishIfDoneLocked(&actions);
+  }
+  act(actions);
+}
+
+void FrameStream::resumeReadingLocked(Actions* actions) {
+  const bool queue_full = settings_->policy != v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS &&
+                          queued_.size() >= kMaxQueuedFrames;
+  if (reading_ || reads_done_ || queue_full || cancelled_ || !failure_.ok()) return;
+  reading_ = true;
+  actions->read = true;
+}
+
+void FrameStream::scheduleLocked() {
+  if (processing_ || queued_.empty() || results_.size() >= kMaxPendingResults || cancelled_ || !failure_.ok()) {
+    return;
+  }
+  processing_ = true;
+  service_.pool.submit([this] { processNext(); });
+}
+
+void FrameStream::processNext() {
+  Frame frame;
+  std::vector<uint64_t> skipped;
+  Actions actions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    frame = std::move(queued_.front());
+    queued_.pop_front();
+    skipped.swap(skipped_);  // frames dropped before this one was taken
+    resumeReadingLocked(&actions);
+  }
+  act(actions);  // no finish possible: processing_ is still set
+
+  v1::FrameResult result = process(frame, std::move(skipped));
+
+  actions = {};
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    processing_ = false;
+    results_.push_back(std::move(result));
+    if (!writing_) {
+      writing_ = true;
+      actions.write = &results_.front();
+    }
+    scheduleLocked();
+    finishIfDoneLocked(&actions);
+  }
+  act(actions);
+}
+
+v1::FrameResult FrameStream::process(const Frame& frame, std::vector<uint64_t> skipped) {
+  const auto start = std::chrono::steady_clock::now();
+  v1::FrameResult out;
+  out.set_frame_id(frame.request.frame_id());
+  out.set_timestamp_us(frame.request.timestamp_us());
+  out.set_queued_ms(std::chrono::duration<double, std::milli>(start - frame.received).count());
+  for (uint64_t id : skipped) out.add_skipped_frame_ids(id);
+  grpc::Status status;
+  try {
+    service_.recognize(stream_id_ + "/" + std::to_string(frame.request.frame_id()), frame.request.scene(),
+                       frame.settings->options, should_stop_, out.mutable_result());
+  } catch (...) {
+    status = withDeadlineReason(context_, statusFromCurrentException());
+    out.mutable_error()->set_code(status.error_code());
+    out.mutable_error()->set_message(status.error_message());
+    spdlog::warn("[{}/{}] frame failed: {}: {}", stream_id_, frame.request.frame_id(),
+                 statusCodeName(status.error_code()), status.error_message());
+  }
+  service_.metrics.recordRequest(
+      "StreamFrames.frame", status.error_code(),
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  return out;
+}
+
+void FrameStream::OnWriteDone(bool ok) {
+  Actions actions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    writing_ = false;
+    results_.pop_front();
+    if (!ok) {
+      failure_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client stopped receiving results");
+    } else if (!results_.empty()) {
+      writing_ = true;
+      actions.write = &results_.front();
+    }
+    scheduleLocked();
+    finishIfDoneLocked(&actions);
+  }
+  act(actions);
+}
+
+void FrameStream::OnCancel() {
+  cancelled_ = true;
+  Actions actions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    finishIfDoneLocked(&actions);
+  }
+  act(actions);
+}
+
+void FrameStream::finishIfDoneLocked(Actions* actions) {
+  if (finished_ || processing_ || writing_ || reading_) return;
+  const bool stopped = cancelled_ || !failure_.ok();
+  if (!stopped && !(reads_done_ && queued_.empty() && results_.empty())) return;
+  finished_ = true;
+  if (!failure_.ok()) {
+    final_status_ = failure_;
+  } else if (cancelled_) {
+    final_status_ = withDeadlineReason(context_, {grpc::StatusCode::CANCELLED, "the client cancelled the stream"});
+  }
+  actions->finish = true;
+}
+
+void FrameStream::OnDone() {
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
+  service_.metrics.streamClosed();
+  service_.metrics.recordRequest("StreamFrames", final_status_.error_code(), seconds);
+  spdlog::info("[{}] stream closed: {} frames in {:.1f}s, {}{}", stream_id_, frames_, seconds,
+               statusCodeName(final_status_.error_code()),
+               final_status_.ok() ? "" : ": " + final_status_.error_message());
+  delete this;
+}
+
+}  // namespace ism::server

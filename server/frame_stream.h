@@ -1,0 +1,85 @@
+#pragma once
+// One StreamFrames call. Frames are read as they come, queued, and recognised one at a time
+// on the worker pool; results are written in frame order, one write in flight at a time.
+//   EVERY_FRAME: the queue holds at most kMaxQueuedFrames; when full, reading pauses and
+//     gRPC flow control slows the sender.
+//   LATEST_FRAME_WINS: reading never pauses; a newer frame replaces the waiting ones, whose
+//     ids ride along with the next result.
+// A frame that fails (bad input) gets a FrameResult carrying the error; the stream goes on.
+#include <grpcpp/support/server_callback.h>
+
+#include <atomic>
+#include <chrono>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <vector>
+
+#include "ism/v1/service.grpc.pb.h"
+#include "server/service_context.h"
+
+namespace ism::server {
+
+class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest, v1::FrameResult> {
+ public:
+  static constexpr size_t kMaxQueuedFrames = 4;
+  static constexpr size_t kMaxPendingResults = 4;
+
+  FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context);
+
+  void OnReadDone(bool ok) override;
+  void OnWriteDone(bool ok) override;
+  void OnCancel() override;
+  void OnDone() override;
+
+ private:
+  struct Settings {
+    v1::BackpressurePolicy policy = v1::BACKPRESSURE_POLICY_EVERY_FRAME;
+    v1::RecognitionOptions options;
+  };
+  struct Frame {
+    v1::StreamFramesRequest request;
+    std::shared_ptr<const Settings> settings;
+    std::chrono::steady_clock::time_point received;
+  };
+
+  // gRPC operations to start once the lock is released, so that a reaction running on
+  // another thread never waits for us. Finish goes last: `this` may be deleted right after.
+  struct Actions {
+    bool read = false;
+    const v1::FrameResult* write = nullptr;
+    bool finish = false;
+  };
+  void act(const Actions& actions);
+
+  void processNext();  // on the worker pool
+  v1::FrameResult process(const Frame& frame, std::vector<uint64_t> skipped);
+  // The *Locked helpers expect mutex_ held and add what is to be started to `actions`.
+  void resumeReadingLocked(Actions* actions);
+  void scheduleLocked();
+  void finishIfDoneLocked(Actions* actions);
+
+  const ServiceContext& service_;
+  grpc::CallbackServerContext* context_;
+  const std::string stream_id_;
+  const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
+  std::atomic<bool> cancelled_{false};
+  ShouldStop should_stop_;
+
+  std::mutex mutex_;
+  v1::StreamFramesRequest read_buffer_;
+  std::shared_ptr<const Settings> settings_ = std::make_shared<Settings>();
+  std::deque<Frame> queued_;
+  std::vector<uint64_t> skipped_;
+  std::deque<v1::FrameResult> results_;
+  bool reading_ = false;
+  bool reads_done_ = false;
+  bool processing_ = false;
+  bool writing_ = false;
+  bool finished_ = false;
+  grpc::Status failure_;  // ends the whole stream (bad settings, client stopped reading)
+  grpc::Status final_status_;
+  size_t frames_ = 0;
+};
+
+}  // namespace ism::server

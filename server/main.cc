@@ -1,0 +1,133 @@
+// ism-server: the furniture recognition gRPC service. Every flag has an ISM_* environment
+// variable fallback (for containers). SIGTERM/SIGINT stop accepting calls, let the running ones
+// finish (up to --drain-seconds), and exit 0.
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+#include <CLI/CLI.hpp>
+#include <csignal>
+#include <cstring>
+#include <filesystem>
+#include <thread>
+
+#include "server/recognizer_service.h"
+
+namespace fs = std::filesystem;
+
+namespace {
+
+// models/default next to an installed binary (PREFIX/share/ism/...), else in the source tree.
+std::string defaultModelDirectory() {
+  std::error_code ec;
+  const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+  const fs::path installed = exe.parent_path().parent_path() / "share" / "ism" / "models" / "default";
+  if (!ec && fs::is_directory(installed)) return installed.string();
+  return ISM_SOURCE_MODEL_DIR;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  // Block the stop signals before any thread exists, so that every thread inherits the mask
+  // and only sigwait() below ever sees them.
+  sigset_t stop_signals;
+  sigemptyset(&stop_signals);
+  sigaddset(&stop_signals, SIGTERM);
+  sigaddset(&stop_signals, SIGINT);
+  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);
+
+  CLI::App app{"ism-server: furniture recognition with 3D Implicit Shape Models over gRPC"};
+  std::string listen = "0.0.0.0:50051";
+  std::string model_dir = defaultModelDirectory();
+  int threads = static_cast<int>(std::max(1u, std::thread::hardware_concurrency()));
+  int max_message_mb = 64;
+  std::string metrics_listen = "0.0.0.0:9464";
+  std::string log_level = "info";
+  ism::server::InputLimits limits;
+  double drain_seconds = 10;
+  app.add_option("--listen", listen, "gRPC address")->envname("ISM_LISTEN")->capture_default_str();
+  app.add_option("--models", model_dir, "directory whose *.ismm files are loaded (name = file stem)")
+      ->envname("ISM_MODELS")
+      ->capture_default_str();
+  app.add_option("--threads", threads, "recognition worker threads")
+      ->envname("ISM_THREADS")
+      ->check(CLI::Range(1, 1024))
+      ->capture_default_str();
+  app.add_option("--max-message-mb", max_message_mb, "largest request or response (a raw 640x480 XYZRGB frame is 4.6 MB)")
+      ->envname("ISM_MAX_MESSAGE_MB")
+      ->check(CLI::Range(1, 2047))
+      ->capture_default_str();
+  app.add_option("--max-points", limits.max_points, "largest cloud accepted (points)")
+      ->envname("ISM_MAX_POINTS")
+      ->capture_default_str();
+  app.add_option("--max-pixels", limits.max_pixels, "largest depth image accepted (pixels)")
+      ->envname("ISM_MAX_PIXELS")
+      ->capture_default_str();
+  app.add_option("--metrics-listen", metrics_listen, "Prometheus /metrics address; empty disables it")
+      ->envname("ISM_METRICS_LISTEN")
+      ->capture_default_str();
+  app.add_option("--drain-seconds", drain_seconds, "on SIGTERM, how long running calls may take to finish")
+      ->envname("ISM_DRAIN_SECONDS")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  app.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
+      ->envname("ISM_LOG_LEVEL")
+      ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
+      ->capture_default_str();
+  CLI11_PARSE(app, argc, argv);
+
+  spdlog::set_default_logger(spdlog::stderr_color_mt("ism-server"));
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("%Y-%m-%dT%H:%M:%S.%e %^%l%$ %v");
+
+  try {
+    ism::server::ModelRegistry models(model_dir);
+    models.loadDirectory();
+    for (const auto& model : models.list()) {
+      spdlog::info("model {}@{}: {} categories from {} ({:.0f}ms)", model->name, model->info.version(),
+                   model->info.categories_size(), model->info.path(), model->info.load_ms());
+    }
+    if (models.size() == 0) spdlog::warn("no *.ismm in {}: load models with LoadModel", model_dir);
+
+    ism::server::Metrics metrics(metrics_listen);
+    metrics.setLoadedModels(models.size());
+    // Declared before the server so that it outlives every call the server finishes.
+    ism::server::WorkerPool pool(threads);
+    ism::server::RecognizerService service({models, pool, metrics, limits});
+
+    grpc::EnableDefaultHealthCheckService(true);
+    grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+    grpc::ServerBuilder builder;
+    int port = 0;
+    builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);
+    builder.SetMaxReceiveMessageSize(max_message_mb * 1024 * 1024);
+    builder.SetMaxSendMessageSize(max_message_mb * 1024 * 1024);
+    builder.RegisterService(&service);
+    std::unique_ptr<grpc::Server> server = builder.BuildAndStart();
+    if (!server || port == 0) {
+      spdlog::critical("cannot listen on {}", listen);
+      return 1;
+    }
+    spdlog::info("listening on {} (port {}), {} worker threads, metrics {}", listen, port, threads,
+                 metrics_listen.empty() ? "off" : metrics_listen);
+
+    int signal_number = 0;
+    sigwait(&stop_signals, &signal_number);
+    spdlog::info("{}: draining running calls (up to {}s)", strsignal(signal_number), drain_seconds);
+    // Health first, so load balancers stop sending new calls while the old ones finish.
+    server->GetHealthCheckService()->SetServingStatus(false);
+    const auto drain_start = std::chrono::steady_clock::now();
+    server->Shutdown(std::chrono::system_clock::now() +
+                     std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                         std::chrono::duration<double>(drain_seconds)));
+    spdlog::info("stopped after {:.0f}ms of draining",
+                 std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - drain_start).count());
+  } catch (const std::exception& e) {
+    spdlog::critical("{}", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,65 @@
+#include "server/metrics.h"
+
+#include "server/status_mapping.h"
+
+namespace ism::server {
+namespace {
+
+// 1 ms .. ~33 s in factors of 2: covers a model listing as well as a full 640x480 frame.
+const prometheus::Histogram::BucketBoundaries& latencyBuckets() {
+  static const auto buckets = [] {
+    prometheus::Histogram::BucketBoundaries b;
+    for (double edge = 0.001; edge < 40; edge *= 2) b.push_back(edge);
+    return b;
+  }();
+  return buckets;
+}
+
+}  // namespace
+
+Metrics::Metrics(const std::string& listen)
+    : requests_(prometheus::BuildCounter()
+                    .Name("ism_requests_total")
+                    .Help("RPCs (stream frames count one each under StreamFrames.frame) by status code")
+                    .Register(*registry_)),
+      request_seconds_(prometheus::BuildHistogram()
+                           .Name("ism_request_duration_seconds")
+                           .Help("RPC latency by method")
+                           .Register(*registry_)),
+      stage_seconds_(prometheus::BuildHistogram()
+                         .Name("ism_stage_duration_seconds")
+                         .Help("Recognition pipeline stage durations")
+                         .Register(*registry_)),
+      active_streams_(prometheus::BuildGauge()
+                          .Name("ism_active_streams")
+                          .Help("StreamFrames calls in progress")
+                          .Register(*registry_)
+                          .Add({})),
+      skipped_frames_(prometheus::BuildCounter()
+                          .Name("ism_skipped_frames_total")
+                          .Help("Stream frames dropped by LATEST_FRAME_WINS")
+                          .Register(*registry_)
+                          .Add({})),
+      loaded_models_(prometheus::BuildGauge()
+                         .Name("ism_loaded_models")
+                         .Help("Models currently loaded")
+                         .Register(*registry_)
+                         .Add({})) {
+  if (!listen.empty()) {
+    exposer_ = std::make_unique<prometheus::Exposer>(listen);
+    exposer_->RegisterCollectable(registry_);
+  }
+}
+
+void Metrics::recordRequest(const std::string& rpc, grpc::StatusCode code, double seconds) {
+  requests_.Add({{"rpc", rpc}, {"code", statusCodeName(code)}}).Increment();
+  request_seconds_.Add({{"rpc", rpc}}, latencyBuckets()).Observe(seconds);
+}
+
+void Metrics::recordStages(const StageTimings& timings) {
+  for (const auto& [stage, ms] : timings.stages) {
+    stage_seconds_.Add({{"stage", stage}}, latencyBuckets()).Observe(ms / 1000.0);
+  }
+}
+
+}  // namespace ism::server

@@ -1,0 +1,156 @@
+#include "server/model_registry.h"
+
+#include <zlib.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+
+#include "core/common/error.h"
+#include "core/io/depth_png.h"
+#include "core/model/model_file.h"
+#include "ism/v1/model.pb.h"
+
+namespace ism::server {
+namespace fs = std::filesystem;
+
+namespace {
+
+std::vector<fs::path> modelFiles(const std::string& directory) {
+  std::vector<fs::path> files;
+  if (directory.empty()) return files;
+  std::error_code ec;
+  if (!fs::is_directory(directory, ec)) {
+    throw Error(ErrorCode::kNotFound, "model directory " + directory + " does not exist");
+  }
+  for (const auto& entry : fs::directory_iterator(directory)) {
+    if (entry.is_regular_file() && entry.path().extension() == ".ismm") files.push_back(entry.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+// Reads a model file into a LoadedModel without registering it.
+std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const std::string& path) {
+  if (name.empty()) throw Error(ErrorCode::kInvalidInput, "model name is empty (path " + path + ")");
+  auto start = std::chrono::steady_clock::now();
+  auto loaded = std::make_shared<LoadedModel>();
+  // Read once: the same bytes give the model, its metadata and its version, so they agree.
+  const std::string bytes = readFileBytes(path);
+  loaded->model = parseModel(bytes, path);  // checks magic, version and CRC
+  v1::ModelFile envelope;
+  v1::ModelData data;
+  if (!envelope.ParseFromString(bytes) || !data.ParseFromString(envelope.payload())) {
+    throw Error(ErrorCode::kCorruptModel, "model file " + path + " cannot be parsed for its metadata");
+  }
+  v1::ModelInfo& info = loaded->info;
+  char version[9];
+  std::snprintf(version, sizeof version, "%08lx",
+                crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
+  info.set_name(name);
+  info.set_path(fs::absolute(path).string());
+  info.set_version(version);
+  info.set_format_version(envelope.format_version());
+  *info.mutable_front_end() = data.front_end();
+  *info.mutable_trained_knn() = data.trained_knn();
+  *info.mutable_trained_cutoff() = data.trained_cutoff();
+  info.set_global_codebook_size(data.global_codebook().size());
+  for (const auto& category : data.categories()) {
+    auto* out = info.add_categories();
+    out->set_name(category.name());
+    out->set_bin_size(category.bin_size());
+    *out->mutable_box() = category.box();
+    out->set_own_codebook_size(category.own_codebook().size());
+    out->set_global_votes(category.global_votes().vectors_size() / 3);
+    out->set_own_votes(category.own_votes().vectors_size() / 3);
+    *out->mutable_thresholds() = category.thresholds();
+    out->set_training_models(category.training_models());
+    out->set_training_scans(category.training_scans());
+  }
+  *info.mutable_provenance() = data.provenance();
+  info.set_loaded_at_unix_ms(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                 std::chrono::system_clock::now().time_since_epoch())
+                                 .count());
+  info.set_load_ms(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
+  loaded->name = name;
+  return loaded;
+}
+
+}  // namespace
+
+void ModelRegistry::loadDirectory() {
+  for (const auto& file : modelFiles(directory_)) load(file.stem().string(), file.string());
+}
+
+std::shared_ptr<const LoadedModel> ModelRegistry::load(const std::string& name, const std::string& path) {
+  auto loaded = readModelFile(name, path);
+  std::lock_guard<std::mutex> lock(mutex_);
+  models_[name] = loaded;
+  return loaded;
+}
+
+void ModelRegistry::unload(const std::string& name) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (models_.erase(name) == 0) {
+    throw Error(ErrorCode::kNotFound, "model '" + name + "' is not loaded (loaded: " + loadedNames() + ")");
+  }
+}
+
+std::vector<LoadFailure> ModelRegistry::reload() {
+  std::map<std::string, std::string> sources;  // name -> path
+  for (const auto& model : list()) sources[model->name] = model->info.path();
+  std::vector<LoadFailure> failures;
+  try {
+    for (const auto& file : modelFiles(directory_)) sources.emplace(file.stem().string(), fs::absolute(file).string());
+  } catch (const Error& e) {
+    failures.push_back({"", directory_, e.what()});
+  }
+  for (const auto& [name, path] : sources) {
+    try {
+      load(name, path);
+    } catch (const Error& e) {
+      failures.push_back({name, path, e.what()});
+    }
+  }
+  return failures;
+}
+
+std::shared_ptr<const LoadedModel> ModelRegistry::get(const std::string& name) const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  if (name.empty()) {
+    if (models_.size() == 1) return models_.begin()->second;
+    auto it = models_.find("default");
+    if (it != models_.end()) return it->second;
+    throw Error(ErrorCode::kNotFound, models_.empty()
+                                          ? std::string("no model is loaded")
+                                          : "no model named in the request and none is called 'default' (loaded: " +
+                                                loadedNames() + ")");
+  }
+  auto it = models_.find(name);
+  if (it == models_.end()) {
+    throw Error(ErrorCode::kNotFound, "unknown model '" + name + "' (loaded: " + loadedNames() + ")");
+  }
+  return it->second;
+}
+
+std::vector<std::shared_ptr<const LoadedModel>> ModelRegistry::list() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  std::vector<std::shared_ptr<const LoadedModel>> out;
+  for (const auto& entry : models_) out.push_back(entry.second);
+  return out;
+}
+
+size_t ModelRegistry::size() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return models_.size();
+}
+
+std::string ModelRegistry::loadedNames() const {
+  if (models_.empty()) return "none";
+  std::string names;
+  for (const auto& entry : models_) names += (names.empty() ? "" : ", ") + entry.first;
+  return names;
+}
+
+}  // namespace ism::server

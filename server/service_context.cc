@@ -1,0 +1,59 @@
+#include "server/service_context.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <random>
+
+#include "core/recognition/recognizer.h"
+
+namespace ism::server {
+
+void ServiceContext::recognize(const std::string& request_id, const v1::Scene& scene,
+                               const v1::RecognitionOptions& options, const ShouldStop& should_stop,
+                               v1::RecognitionResult* out) const {
+  const auto model = models.get(options.model());  // held until the end: unloads cannot touch it
+  StageTimings decode_timing;
+  Scene decoded;
+  RecognitionOptions core_options;
+  {
+    ScopedStage stage(&decode_timing, "decode");
+    core_options = optionsFromProto(options, model->model);
+    decoded = sceneFromProto(scene, limits);
+  }
+  core_options.should_stop = should_stop;
+  RecognitionResult result = ism::recognize(model->model, decoded, core_options);
+  result.timings.stages.insert(result.timings.stages.begin(), decode_timing.stages.front());
+  metrics.recordStages(result.timings);
+  resultToProto(result, *model, out);
+
+  std::string stages;
+  for (const auto& [name, ms] : result.timings.stages) stages += fmt::format(" {}={:.1f}ms", name, ms);
+  spdlog::info("[{}] model={}@{} points={} keypoints={} hypotheses={} total={:.1f}ms{}", request_id, model->name,
+               model->info.version(), result.input_points, result.keypoints, result.hypotheses.size(),
+               result.timings.total(), stages);
+}
+
+ShouldStop callStopper(grpc::CallbackServerContext* context, const std::atomic<bool>* stopped) {
+  return [context, stopped] {
+    return context->IsCancelled() || std::chrono::system_clock::now() > context->deadline() ||
+           (stopped != nullptr && stopped->load());
+  };
+}
+
+grpc::Status withDeadlineReason(grpc::CallbackServerContext* context, grpc::Status status) {
+  if (status.error_code() == grpc::StatusCode::CANCELLED && std::chrono::system_clock::now() > context->deadline()) {
+    return {grpc::StatusCode::DEADLINE_EXCEEDED, "deadline exceeded: " + status.error_message()};
+  }
+  return status;
+}
+
+std::string requestId(const std::string& given) {
+  if (!given.empty()) return given;
+  // A random per-process prefix keeps ids from different server runs apart in merged logs.
+  static const std::string prefix = fmt::format("{:06x}", std::random_device{}() & 0xffffff);
+  static std::atomic<uint64_t> counter{0};
+  return fmt::format("{}-{}", prefix, ++counter);
+}
+
+}  // namespace ism::server

@@ -1,0 +1,33 @@
+#pragma once
+// Recognition takes tens to hundreds of milliseconds, far too long to run on gRPC's callback
+// threads (which must not block), so every RPC hands its work to this fixed pool.
+#include <condition_variable>
+#include <deque>
+#include <functional>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+namespace ism::server {
+
+class WorkerPool {
+ public:
+  explicit WorkerPool(int threads);
+  // Runs every task already submitted, then joins.
+  ~WorkerPool();
+  WorkerPool(const WorkerPool&) = delete;
+  WorkerPool& operator=(const WorkerPool&) = delete;
+
+  void submit(std::function<void()> task);
+
+ private:
+  void run();
+
+  std::mutex mutex_;
+  std::condition_variable wake_;
+  std::deque<std::function<void()>> tasks_;
+  bool stopping_ = false;
+  std::vector<std::thread> threads_;
+};
+
+}  // namespace ism::server

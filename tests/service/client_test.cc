@@ -1,0 +1,133 @@
+// ism-client against the real ism-server: output and exit codes (0 ok, 1 local failure,
+// 2 usage, 10 + gRPC status code).
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <regex>
+
+#include "core/io/cloud_io.h"
+#include "core/io/depth_png.h"
+#include "tests/service/service_fixture.h"
+
+namespace ism::testing {
+namespace {
+namespace fs = std::filesystem;
+
+class ClientTest : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    server_ = new ServerProcess();
+    dir_ = fs::path(::testing::TempDir()) / ("ism_client_test_" + std::to_string(getpid()));
+    fs::create_directories(dir_ / "tum" / "depth");
+    const SyntheticScene scene = smallScene();
+    savePcd(scene.scene, (dir_ / "scene.pcd").string());
+    for (int i = 0; i < 6; ++i) {
+      const v1::Scene frame = pngDepthMessage(smallScene(i).depth);
+      writeFileBytes((dir_ / "tum" / "depth" / (std::to_string(1305031102 + i) + ".5.png")).string(),
+                     frame.depth().data());
+    }
+    writeFileBytes((dir_ / "broken.png").string(), "this is not a PNG");
+  }
+  static void TearDownTestSuite() {
+    delete server_;
+    fs::remove_all(dir_);
+  }
+
+  static std::string client(const std::string& arguments, int* exit_code) {
+    return runCommand(std::string(ISM_CLIENT_BINARY) + " --server " + server_->address() + " " + arguments, exit_code);
+  }
+
+  static ServerProcess* server_;
+  static fs::path dir_;
+};
+ServerProcess* ClientTest::server_ = nullptr;
+fs::path ClientTest::dir_;
+
+TEST_F(ClientTest, HealthPrintsServing) {
+  int code = -1;
+  const std::string out = client("health", &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("SERVING"), std::string::npos) << out;
+}
+
+TEST_F(ClientTest, RecognizePrintsATable) {
+  int code = -1;
+  const std::string pcd = (dir_ / "scene.pcd").string();
+  // A zero threshold makes every Hough maximum a hypothesis, so the table has rows.
+  const std::string out = client("recognize --min-score 0 --max-hypotheses 3 --no-box-selection " + pcd, &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex(pcd + ": 3 hypotheses \\(model default@[0-9a-f]{8}"))) << out;
+  EXPECT_NE(out.find("category"), std::string::npos) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex("\n(dining_table|dining_chair) +[0-9.]+ +0\\.000 "))) << out;
+  EXPECT_NE(out.find("stages: decode"), std::string::npos) << out;
+}
+
+TEST_F(ClientTest, RecognizeJsonAndPicture) {
+  int code = -1;
+  const std::string png = (dir_ / "tum" / "depth" / "1305031102.5.png").string();
+  const std::string picture = (dir_ / "picture.png").string();
+  const std::string out = client("--json recognize --fx 131.25 --fy 131.25 --cx 79.5 --cy 59.5 --picture " +
+                                     picture + " " + png,
+                                 &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("\"input_points\":"), std::string::npos) << out;
+  ASSERT_TRUE(fs::exists(picture));
+  EXPECT_GT(fs::file_size(picture), 100u);
+}
+
+TEST_F(ClientTest, ExitCodesFollowTheStatus) {
+  int code = -1;
+  std::string out = client("models show nope", &code);
+  EXPECT_EQ(code, 10 + static_cast<int>(grpc::StatusCode::NOT_FOUND)) << out;
+  EXPECT_NE(out.find("NOT_FOUND: unknown model 'nope'"), std::string::npos) << out;
+
+  out = client("recognize " + (dir_ / "broken.png").string(), &code);
+  EXPECT_EQ(code, 10 + static_cast<int>(grpc::StatusCode::INVALID_ARGUMENT)) << out;
+  EXPECT_NE(out.find("not a PNG"), std::string::npos) << out;
+
+  out = client("recognize --category spaceship " + (dir_ / "scene.pcd").string(), &code);
+  EXPECT_EQ(code, 10 + static_cast<int>(grpc::StatusCode::NOT_FOUND)) << out;
+
+  out = client("recognize " + (dir_ / "missing.pcd").string(), &code);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_NE(out.find("missing.pcd"), std::string::npos) << out;
+
+  out = client("recognize --no-such-flag x.pcd", &code);
+  EXPECT_EQ(code, 2) << out;
+
+  out = runCommand(std::string(ISM_CLIENT_BINARY) + " --server 127.0.0.1:1 health", &code);
+  EXPECT_EQ(code, 10 + static_cast<int>(grpc::StatusCode::UNAVAILABLE)) << out;
+}
+
+TEST_F(ClientTest, ModelsListsTheModel) {
+  int code = -1;
+  std::string out = client("models", &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex("default +[0-9a-f]{8} +v1 .*dining_chair, dining_table"))) << out;
+  out = client("models show default", &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("threshold"), std::string::npos) << out;
+  EXPECT_NE(out.find("SHOT r 0.080 m"), std::string::npos) << out;
+}
+
+TEST_F(ClientTest, StreamsAFolderOfDepthPngs) {
+  int code = -1;
+  const std::string out = client("stream --policy every --fx 131.25 --fy 131.25 --cx 79.5 --cy 59.5 --folder " +
+                                     (dir_ / "tum").string(),
+                                 &code);
+  EXPECT_EQ(code, 0) << out;
+  for (int i = 1; i <= 6; ++i) {
+    EXPECT_NE(out.find("frame " + std::to_string(i) + ": "), std::string::npos) << out;
+  }
+  EXPECT_NE(out.find("6 frames sent, 6 results (0 failed), 0 skipped"), std::string::npos) << out;
+}
+
+TEST_F(ClientTest, StreamWithoutASensorSaysSo) {
+  int code = -1;
+  const std::string out = client("stream --device", &code);
+  EXPECT_EQ(code, 1) << out;
+  EXPECT_NE(out.find("no OpenNI2 depth sensor is attached"), std::string::npos) << out;
+}
+
+}  // namespace
+}  // namespace ism::testing

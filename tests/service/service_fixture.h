@@ -1,0 +1,55 @@
+#pragma once
+// Shared by the service tests: a tiny model trained once and cached in the build tree, the real
+// ism-server binary started on free ports, small synthetic scenes, and request builders.
+#include <grpcpp/grpcpp.h>
+#include <sys/types.h>
+
+#include <chrono>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/scanner/scanner.h"
+#include "ism/v1/service.grpc.pb.h"
+
+namespace ism::testing {
+
+// Trains (first call in the build tree) or reuses a two-category model; returns the directory
+// holding it as default.ismm. Cached because every test process starts its own server.
+std::string tinyModelDirectory();
+
+// A running ism-server. The destructor kills it (SIGKILL) if the test did not stop it.
+class ServerProcess {
+ public:
+  // Extra flags are appended (e.g. "--max-points", "5000"). Waits for health SERVING.
+  explicit ServerProcess(const std::vector<std::string>& extra_flags = {});
+  ~ServerProcess();
+  ServerProcess(const ServerProcess&) = delete;
+  ServerProcess& operator=(const ServerProcess&) = delete;
+
+  std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  int metricsPort() const { return metrics_port_; }
+  std::shared_ptr<grpc::Channel> channel() const;
+  // SIGTERM, then the exit code (-1 when it did not exit within `timeout` or died of a signal).
+  int terminate(std::chrono::seconds timeout = std::chrono::seconds(30));
+  // The body of GET /metrics.
+  std::string metrics() const;
+
+ private:
+  pid_t pid_ = -1;
+  int port_ = 0;
+  int metrics_port_ = 0;
+};
+
+// 160x120 frames of procedural furniture on a floor; `frame` moves the camera a little so a
+// stream is not the same image over and over.
+SyntheticScene smallScene(int frame = 0, int width = 160, int height = 120);
+
+// Scenes as the wire carries them.
+v1::Scene cloudMessage(const Scene& scene);
+v1::Scene rawDepthMessage(const DepthImage& image, float depth_scale = 1000.0f);
+v1::Scene pngDepthMessage(const DepthImage& image, float depth_scale = 1000.0f);
+
+std::string runCommand(const std::string& command, int* exit_code);  // stdout+stderr
+
+}  // namespace ism::testing
