@@ -1,0 +1,89 @@
+"""Command line: python3 -m ism_client [--server HOST:PORT] recognize FILE.pcd|DEPTH.png | models [NAME] | health
+
+Exit status: 0 on success, 1 when the server answered an error (or health is not SERVING),
+2 for bad arguments or unreadable files."""
+import argparse
+import os
+import sys
+
+from google.protobuf import json_format
+
+from . import KINECT, Intrinsics, IsmError, connect, read_pcd
+
+
+def _print_result(result, as_json: bool):
+    if as_json:
+        print(json_format.MessageToJson(result, preserving_proto_field_name=True))
+        return
+    print(f"model {result.model_name}@{result.model_version}: {result.input_points} points, "
+          f"{result.keypoints} keypoints, {len(result.hypotheses)} hypotheses, {result.total_ms:.1f} ms")
+    for h in result.hypotheses:
+        c = h.center
+        print(f"  {h.category:<14} score {h.score:8.3f} (threshold {h.threshold:.3f})  "
+              f"centre ({c.x:.3f}, {c.y:.3f}, {c.z:.3f}) m  support {h.support}"
+              f"{'' if h.passed_selection else '  [failed box selection]'}")
+
+
+def _recognize(client, args):
+    options = dict(model=args.model, categories=args.category or (), min_score=args.min_score,
+                   max_hypotheses=args.max_hypotheses)
+    if args.file.lower().endswith(".png"):
+        with open(args.file, "rb") as f:
+            depth = f.read()
+        intrinsics = Intrinsics(args.fx, args.fy, args.cx, args.cy, args.depth_scale)
+        return client.recognize_depth(depth, intrinsics, **options)
+    if args.file.lower().endswith(".pcd"):
+        cloud = read_pcd(args.file)
+        return client.recognize_cloud(cloud.points, cloud.rgb, width=cloud.width, height=cloud.height, **options)
+    raise ValueError(f"{args.file}: expected a .pcd cloud or a 16-bit .png depth image")
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python3 -m ism_client", description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--server", default=os.environ.get("ISM_SERVER", "127.0.0.1:50051"),
+                    help="gRPC target (default: $ISM_SERVER or 127.0.0.1:50051)")
+    ap.add_argument("--timeout", type=float, default=60.0, help="seconds per call")
+    ap.add_argument("--json", action="store_true", help="print the full response as JSON")
+    sub = ap.add_subparsers(dest="command", required=True)
+    rec = sub.add_parser("recognize", help="recognize furniture in a .pcd cloud or a 16-bit .png depth image")
+    rec.add_argument("file")
+    rec.add_argument("--model", default="", help="model name (default: the server's default)")
+    rec.add_argument("--category", action="append", help="only this category (repeatable)")
+    rec.add_argument("--min-score", type=float, help="override the model's detection threshold")
+    rec.add_argument("--max-hypotheses", type=int, default=0)
+    for name, default in (("fx", KINECT.fx), ("fy", KINECT.fy), ("cx", KINECT.cx), ("cy", KINECT.cy),
+                          ("depth-scale", KINECT.depth_scale)):
+        rec.add_argument(f"--{name}", type=float, default=default, help=f"depth PNG intrinsics (default {default})")
+    models = sub.add_parser("models", help="list the loaded models, or show one")
+    models.add_argument("name", nargs="?")
+    sub.add_parser("health", help="grpc.health.v1 check; exit 0 only when SERVING")
+    args = ap.parse_args(argv)
+
+    try:
+        with connect(args.server, timeout=args.timeout) as client:
+            if args.command == "health":
+                status = client.health()
+                print(status)
+                return 0 if status == "SERVING" else 1
+            if args.command == "models":
+                infos = [client.get_model(args.name)] if args.name else client.list_models()
+                for info in infos:
+                    if args.json:
+                        print(json_format.MessageToJson(info, preserving_proto_field_name=True))
+                    else:
+                        categories = ", ".join(c.name for c in info.categories)
+                        print(f"{info.name}@{info.version}  {info.path}  [{categories}]")
+                return 0
+            _print_result(_recognize(client, args), args.json)
+            return 0
+    except IsmError as e:
+        print(f"error from {args.server}: {e}", file=sys.stderr)
+        return 1
+    except (OSError, ValueError) as e:
+        print(f"error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Installs what building, running and testing the project needs on Debian 12 (bookworm).
+# Used by the README's commands, by .ci/run and by the container build stage.
+#   deploy/install-deps.sh           build + runtime + test dependencies
+#   deploy/install-deps.sh --runtime only the shared libraries the binaries load
+set -euo pipefail
+
+runtime=(libpcl-common1.13 libpcl-io1.13 libpcl-features1.13 libpcl-filters1.13 libpcl-surface1.13
+         libpcl-search1.13 libpcl-kdtree1.13 libgrpc++1.51 libgrpc29 libprotobuf32 libspdlog1.10
+         libpng16-16 zlib1g libflann1.9 libopenni2-0 libprometheus-cpp-core1.0 libprometheus-cpp-pull1.0
+         libgomp1 ca-certificates)
+build=(build-essential cmake ninja-build pkg-config git
+       libpcl-dev libeigen3-dev libflann-dev libpng-dev zlib1g-dev
+       libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
+       libspdlog-dev libcli11-dev nlohmann-json3-dev libopenni2-dev prometheus-cpp-dev
+       libgtest-dev libgmock-dev libbenchmark-dev
+       python3 python3-grpcio python3-protobuf python3-numpy python3-yaml
+       sweethome3d-furniture
+       podman buildah debootstrap runc)
+
+if [[ "${1:-}" == "--runtime" ]]; then pkgs=("${runtime[@]}"); else pkgs=("${build[@]}"); fi
+
+sudo=""
+if [[ $(id -u) -ne 0 ]]; then sudo="sudo"; fi
+# Skip apt entirely when everything is there already (CI runs on a machine that has them).
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if (( ${#missing[@]} )); then
+  echo "installing: ${missing[*]}"
+  $sudo apt-get update -q
+  DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -q --no-install-recommends "${missing[@]}"
+fi

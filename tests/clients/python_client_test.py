@@ -1,0 +1,184 @@
+"""The Python client (client/python) against a real ism-server on 127.0.0.1.
+
+Run by ctest (tests/clients/CMakeLists.txt), which sets ISM_SERVER_BIN, ISM_TEST_MODEL_DIR,
+ISM_PY_STUBS and PYTHONPATH."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import unittest
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import ism_client  # noqa: E402
+import scenes  # noqa: E402
+from server_process import ServerProcess  # noqa: E402
+from ism_client.pcd import lzf_decompress, read_pcd  # noqa: E402
+
+SMALL = ism_client.Intrinsics(**scenes.SMALL_CAMERA)
+
+
+class PcdReaderTest(unittest.TestCase):
+    """The reader the command line uses for .pcd files; no server needed."""
+
+    def test_every_data_kind_round_trips_points_and_colours(self):
+        points = scenes.box_on_floor(step=0.1)
+        rgb = np.random.default_rng(1).integers(0, 256, points.shape).astype(np.uint8)
+        with tempfile.TemporaryDirectory() as tmp:
+            for kind in ("ascii", "binary", "binary_compressed"):
+                with self.subTest(kind=kind):
+                    path = os.path.join(tmp, f"{kind}.pcd")
+                    scenes.write_pcd(path, points, rgb, kind)
+                    cloud = read_pcd(path)
+                    np.testing.assert_allclose(cloud.points, points, rtol=0, atol=1e-6)
+                    np.testing.assert_array_equal(cloud.rgb, rgb)
+                    self.assertEqual((cloud.width, cloud.height), (0, 0))
+
+    def test_lzf_back_reference_may_overlap_its_own_output(self):
+        # literal "ab", then copy 4 bytes from 2 back: "ab" + "abab"
+        self.assertEqual(lzf_decompress(b"\x01ab" + bytes([(4 - 2) << 5, 1]), 6), b"ababab")
+        with self.assertRaisesRegex(ValueError, "header says 7"):
+            lzf_decompress(b"\x01ab" + bytes([(4 - 2) << 5, 1]), 7)
+
+    def test_truncated_and_foreign_files_are_rejected_with_their_path(self):
+        with tempfile.TemporaryDirectory() as tmp:
+            path = os.path.join(tmp, "cut.pcd")
+            scenes.write_pcd(path, scenes.box_on_floor(step=0.1), kind="binary")
+            with open(path, "r+b") as f:
+                f.truncate(os.path.getsize(path) - 5)
+            with self.assertRaisesRegex(ValueError, "cut.pcd: truncated"):
+                read_pcd(path)
+            other = os.path.join(tmp, "other.pcd")
+            with open(other, "wb") as f:
+                f.write(b"ply\nformat ascii 1.0\n")
+            with self.assertRaisesRegex(ValueError, "other.pcd: not a PCD"):
+                read_pcd(other)
+
+
+class ClientAgainstServerTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        cls.server = ServerProcess().start()
+        cls.client = ism_client.connect(cls.server.address, timeout=60)
+        cls.models = cls.client.list_models()
+        if not cls.models:
+            raise RuntimeError(f"the server loaded no model from {cls.server.model_dir}:\n{cls.server.log()}")
+        cls.model = cls.models[0]
+        cls.points = scenes.box_on_floor()
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.client.close()
+        cls.server.stop()
+
+    def assert_valid_result(self, result, input_points=None):
+        self.assertEqual(result.model_name, self.model.name)
+        self.assertEqual(result.model_version, self.model.version)
+        if input_points is not None:
+            self.assertEqual(result.input_points, input_points)
+        self.assertGreater(result.surface_points, 0)
+        self.assertGreater(result.total_ms, 0)
+        self.assertTrue(result.timings, "the server reports per-stage timings")
+        categories = {c.name for c in self.model.categories}
+        for h in result.hypotheses:
+            self.assertIn(h.category, categories)
+            self.assertGreaterEqual(h.score, h.threshold)
+
+    def test_health_is_serving(self):
+        self.assertEqual(self.client.health(), "SERVING")
+
+    def test_list_and_get_model_agree(self):
+        info = self.client.get_model(self.model.name)
+        self.assertEqual(info.version, self.model.version)
+        self.assertEqual([c.name for c in info.categories], [c.name for c in self.model.categories])
+        self.assertGreater(len(info.categories), 0)
+        with self.assertRaises(ism_client.IsmError) as caught:
+            self.client.get_model("no-such-model")
+        self.assertEqual(caught.exception.code.name, "NOT_FOUND")
+
+    def test_recognize_cloud_from_numpy_and_from_lists(self):
+        result = self.client.recognize_cloud(self.points, request_id="py-numpy")
+        self.assert_valid_result(result, input_points=len(self.points))
+        few = self.points[::4]
+        with_colour = self.client.recognize_cloud(few.tolist(), rgb=np.full(few.shape, 200, np.uint8))
+        self.assert_valid_result(with_colour, input_points=len(few))
+
+    def test_recognize_depth_raw_and_png_give_the_same_result(self):
+        depth = scenes.depth_of_box()
+        raw = self.client.recognize_depth(depth, SMALL)
+        png = self.client.recognize_depth(scenes.png16(depth), SMALL)
+        self.assert_valid_result(raw)
+        self.assertEqual(raw.input_points, int(np.count_nonzero(depth)))
+        self.assertEqual((png.input_points, png.keypoints, len(png.hypotheses)),
+                         (raw.input_points, raw.keypoints, len(raw.hypotheses)))
+
+    def test_server_errors_carry_their_grpc_code(self):
+        with self.assertRaises(ism_client.IsmError) as caught:
+            self.client.recognize_cloud(self.points, model="no-such-model")
+        self.assertEqual(caught.exception.code.name, "NOT_FOUND")
+        with self.assertRaises(ism_client.IsmError) as caught:
+            self.client.recognize_depth(scenes.depth_of_box(), ism_client.Intrinsics(0, 0, 0, 0))
+        self.assertEqual(caught.exception.code.name, "INVALID_ARGUMENT")
+        self.assertIn("fx", caught.exception.message)
+
+    def test_bad_input_is_refused_before_sending(self):
+        with self.assertRaisesRegex(ValueError, r"shape \(N, 3\)"):
+            self.client.recognize_cloud(np.zeros((10, 2)))
+        with self.assertRaisesRegex(ValueError, "HxW uint16"):
+            self.client.recognize_depth(np.zeros((4, 4), np.float32), SMALL)
+        with self.assertRaisesRegex(ValueError, "unknown activation"):
+            self.client.recognize_cloud(self.points, activation="nearest")
+
+    def test_stream_answers_every_frame_in_order_and_isolates_a_bad_one(self):
+        cloud = self.points[::2]
+        frames = [ism_client.Frame(points=cloud, timestamp_us=1000),
+                  ism_client.Frame(depth=scenes.depth_of_box(), intrinsics=ism_client.Intrinsics(0, 0, 0, 0)),
+                  ism_client.Frame(depth=scenes.png16(scenes.depth_of_box()), intrinsics=SMALL, frame_id=42)]
+        results = list(self.client.stream_frames(frames, policy="every_frame"))
+        self.assertEqual([r.frame_id for r in results], [0, 1, 42])
+        self.assertEqual([r.WhichOneof("outcome") for r in results], ["result", "error", "result"])
+        self.assertEqual(results[0].timestamp_us, 1000)
+        self.assert_valid_result(results[0].result, input_points=len(cloud))
+        self.assertEqual(results[1].error.code, 3)  # INVALID_ARGUMENT
+        with self.assertRaisesRegex(ValueError, "unknown policy"):
+            list(self.client.stream_frames(frames, policy="fastest"))
+        with self.assertRaisesRegex(ValueError, r"shape \(N, 3\)"):  # raised on gRPC's sending thread
+            list(self.client.stream_frames([frames[0], ism_client.Frame(points=np.zeros((5, 4)))]))
+
+    def run_cli(self, *args):
+        env = dict(os.environ, ISM_SERVER=self.server.address)
+        return subprocess.run([sys.executable, "-m", "ism_client", *args], env=env, capture_output=True,
+                              text=True, timeout=120)
+
+    def test_command_line(self):
+        health = self.run_cli("health")
+        self.assertEqual((health.returncode, health.stdout.strip()), (0, "SERVING"), health.stderr)
+        models = self.run_cli("models")
+        self.assertEqual(models.returncode, 0, models.stderr)
+        self.assertIn(f"{self.model.name}@{self.model.version}", models.stdout)
+        with tempfile.TemporaryDirectory() as tmp:
+            pcd = os.path.join(tmp, "scene.pcd")
+            scenes.write_pcd(pcd, self.points, kind="binary_compressed")
+            cloud = self.run_cli("recognize", pcd)
+            self.assertEqual(cloud.returncode, 0, cloud.stderr)
+            self.assertIn(f"model {self.model.name}@{self.model.version}: {len(self.points)} points", cloud.stdout)
+            png = os.path.join(tmp, "depth.png")
+            with open(png, "wb") as f:
+                f.write(scenes.png16(scenes.depth_of_box()))
+            small = [f"--{k.replace('_', '-')}={v}" for k, v in scenes.SMALL_CAMERA.items()]
+            depth = self.run_cli("--json", "recognize", png, *small)
+            self.assertEqual(depth.returncode, 0, depth.stderr)
+            self.assertEqual(int(json.loads(depth.stdout)["input_points"]),
+                             int(np.count_nonzero(scenes.depth_of_box())))
+            missing = self.run_cli("recognize", os.path.join(tmp, "missing.pcd"))
+            self.assertEqual(missing.returncode, 2)
+            self.assertIn("missing.pcd", missing.stderr)
+        unknown = self.run_cli("models", "no-such-model")
+        self.assertEqual(unknown.returncode, 1)
+        self.assertIn("NOT_FOUND", unknown.stderr)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)

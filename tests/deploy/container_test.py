@@ -1,0 +1,116 @@
+"""Builds deploy/Containerfile with podman, runs the image and calls it from the C++ ism-client
+on 127.0.0.1: health, one recognition, and a clean SIGTERM drain. Slow (the image compiles the
+project), so ctest labels it `container`.
+
+Three adjustments for this CI sandbox, none of which the image needs (see
+../shared/docs/CONTAINERS.md when present): the base image is made locally with debootstrap
+(base_image.sh, no registry here), the build uses --isolation=chroot, and the container runs
+through runc-no-nproc (the sandbox refuses RLIMIT_NPROC) with --network=host."""
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+import unittest
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "clients"))
+import scenes  # noqa: E402
+from server_process import free_port  # noqa: E402
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+SOURCE = os.environ.get("ISM_SOURCE_DIR", os.path.join(HERE, "..", ".."))
+CLIENT = os.environ.get("ISM_CLIENT_BIN", "")
+MODEL_DIR = os.environ.get("ISM_TEST_MODEL_DIR", "")
+IMAGE = "localhost/ism-server:test"
+PODMAN_RUN = ["podman", "--runtime", os.path.join(HERE, "runc-no-nproc")]
+
+
+def run(cmd, timeout, **kwargs):
+    return subprocess.run(cmd, capture_output=True, text=True, timeout=timeout, **kwargs)
+
+
+class ContainerTest(unittest.TestCase):
+    @classmethod
+    def setUpClass(cls):
+        if not CLIENT or not MODEL_DIR:
+            raise RuntimeError("ISM_CLIENT_BIN and ISM_TEST_MODEL_DIR must be set (ctest sets them)")
+        base = run(["bash", os.path.join(HERE, "base_image.sh")], timeout=900)
+        if base.returncode:
+            raise RuntimeError(f"cannot make the base image:\n{base.stdout}{base.stderr}")
+        start = time.monotonic()
+        # --format docker keeps the HEALTHCHECK, which the OCI image format has no field for.
+        build = run(["podman", "build", "--pull=never", "--isolation=chroot", "--format", "docker",
+                     "-f", "deploy/Containerfile", "--ignorefile", "deploy/Containerfile.dockerignore",
+                     "-t", IMAGE, "."], timeout=3600, cwd=SOURCE)
+        cls.build_seconds = time.monotonic() - start
+        if build.returncode:
+            raise RuntimeError(f"podman build failed:\n{build.stdout[-6000:]}{build.stderr[-6000:]}")
+        inspect = run(["podman", "image", "inspect", "--format", "{{.Size}} {{.Config.User}}", IMAGE], timeout=60)
+        size, cls.user = inspect.stdout.split()
+        print(f"image {IMAGE}: {int(size) / 1e6:.0f} MB, built in {cls.build_seconds:.0f} s", flush=True)
+
+        cls.port, cls.metrics_port = free_port(), free_port()
+        cls.name = f"ism-container-test-{os.getpid()}"
+        # The model is mounted the way deploy/compose.yaml documents custom models.
+        started = run(PODMAN_RUN + ["run", "-d", "--name", cls.name, "--network=host", "--ulimit", "nofile=20000:20000",
+                                    "-v", f"{os.path.abspath(MODEL_DIR)}:/models:ro", "-e", "ISM_MODELS=/models",
+                                    "-e", f"ISM_LISTEN=127.0.0.1:{cls.port}",
+                                    "-e", f"ISM_METRICS_LISTEN=127.0.0.1:{cls.metrics_port}", "-e", "ISM_THREADS=2",
+                                    IMAGE], timeout=120)
+        if started.returncode:
+            raise RuntimeError(f"podman run failed:\n{started.stdout}{started.stderr}")
+        cls.address = f"127.0.0.1:{cls.port}"
+        deadline = time.monotonic() + 60
+        while run([CLIENT, "--server", cls.address, "--deadline-ms", "2000", "health"], timeout=30).returncode:
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"the container never became healthy:\n{cls.logs()}")
+            time.sleep(0.5)
+        cls.ready_seconds = time.monotonic() - start - cls.build_seconds
+
+    @classmethod
+    def tearDownClass(cls):
+        if getattr(cls, "name", None):
+            run(PODMAN_RUN + ["rm", "-f", "-t", "0", cls.name], timeout=120)
+
+    @classmethod
+    def logs(cls):
+        result = run(["podman", "logs", cls.name], timeout=60)
+        return result.stdout + result.stderr
+
+    def test_1_image_runs_as_non_root(self):
+        self.assertEqual(self.user, "10001")
+        uid = run(PODMAN_RUN + ["exec", self.name, "id", "-u"], timeout=60)
+        self.assertEqual(uid.stdout.strip(), "10001", uid.stderr)
+
+    def test_2_health_and_recognition_from_the_cpp_client(self):
+        health = run([CLIENT, "--server", self.address, "health"], timeout=60)
+        self.assertEqual(health.returncode, 0, health.stdout + health.stderr)
+        self.assertIn("SERVING", health.stdout)
+        with tempfile.TemporaryDirectory() as tmp:
+            pcd = os.path.join(tmp, "scene.pcd")
+            scenes.write_pcd(pcd, scenes.box_on_floor(), kind="binary")
+            start = time.monotonic()
+            recognized = run([CLIENT, "--server", self.address, "--json", "recognize", pcd], timeout=120)
+            print(f"recognition through the container: {time.monotonic() - start:.2f} s", flush=True)
+        self.assertEqual(recognized.returncode, 0, recognized.stdout + recognized.stderr + self.logs())
+        result = json.loads(recognized.stdout.splitlines()[0])["response"]["result"]
+        self.assertEqual(int(result["input_points"]), len(scenes.box_on_floor()))
+        served_from = {os.path.splitext(f)[0] for f in os.listdir(MODEL_DIR) if f.endswith(".ismm")}
+        self.assertIn(result["model_name"], served_from)
+
+    def test_3_healthcheck_command_of_the_image_passes(self):
+        check = run(PODMAN_RUN + ["healthcheck", "run", self.name], timeout=60)
+        self.assertEqual(check.returncode, 0, check.stdout + check.stderr)
+
+    def test_4_sigterm_drains_and_exits_cleanly(self):
+        stopped = run(PODMAN_RUN + ["stop", "-t", "30", self.name], timeout=120)
+        self.assertEqual(stopped.returncode, 0, stopped.stderr)
+        code = run(["podman", "inspect", "--format", "{{.State.ExitCode}}", self.name], timeout=60)
+        self.assertEqual(code.stdout.strip(), "0", self.logs())
+        self.assertIn("draining", self.logs())
+        print(f"build {self.build_seconds:.0f} s, start to SERVING {self.ready_seconds:.1f} s", flush=True)
+
+
+if __name__ == "__main__":
+    unittest.main(verbosity=2)
