@@ -13,15 +13,6 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
-float thresholdFor(const CategoryModel& category, const Strategy& strategy) {
-  auto it = category.thresholds.find({strategy.codebook, strategy.activation.strategy, strategy.weighting});
-  if (it == category.thresholds.end()) {
-    throw Error(ErrorCode::kInvalidInput, "model has no detection threshold for category '" + category.name +
-                                              "' and combination '" + strategyName(strategy) + "'");
-  }
-  return it->second;
-}
-
 int indexOf(const std::vector<std::string>& names, const std::string& name) {
   auto it = std::find(names.begin(), names.end(), name);
   return it == names.end() ? -1 : static_cast<int>(it - names.begin());
@@ -62,31 +53,10 @@ std::vector<NamedStrategy> seedCombinations(const Model& model) {
 
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features,
                                               const Strategy& strategy) {
-  std::vector<Hypothesis> out;
-  if (features.size() == 0) return out;
-  const bool global = strategy.codebook == CodebookType::kGlobal;
-  if (!model.has(strategy.codebook)) {
-    throw Error(ErrorCode::kInvalidInput,
-                std::string("model was trained without the ") + toString(strategy.codebook) + " codebook");
-  }
-  // The global codebook's activations serve every category.
-  std::vector<Activation> activations;
-  if (global) activations = model.global_codebook->activate(features.descriptors, strategy.activation);
-  for (size_t c = 0; c < model.categories.size(); ++c) {
-    const CategoryModel& category = model.categories[c];
-    if (!global) {
-      if (!category.own_codebook) {
-        throw Error(ErrorCode::kInvalidInput, "model has no separated codebook for category '" + category.name + "'");
-      }
-      activations = category.own_codebook->activate(features.descriptors, strategy.activation);
-    }
-    const float threshold = thresholdFor(category, strategy);
-    auto votes = castVotes(model, static_cast<int>(c), features, activations, strategy);
-    auto peaks = findPeaks(votes, features, category, threshold);  // box selection already applied
-    std::move(peaks.begin(), peaks.end(), std::back_inserter(out));
-  }
-  std::stable_sort(out.begin(), out.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
-  return out;
+  RecognitionOptions options;
+  options.strategy = strategy;
+  options.box_selection = false;  // the tables count peaks before selection too
+  return recognizeFeatures(model, features, options).hypotheses;
 }
 
 MeshSplit splitMeshes(const std::vector<TrainingMesh>& meshes, int train_per_category, int test_per_category) {

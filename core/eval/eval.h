@@ -29,8 +29,8 @@ std::string strategyName(const Strategy& strategy);
 // model's trained activation parameters; combinations whose codebook the model lacks are left out.
 std::vector<NamedStrategy> seedCombinations(const Model& model);
 
-// Recognition on already extracted features: every peak above the model's threshold for the
-// strategy, for every category (passed_selection says whether it passed the box test), best first.
+// recognizeFeatures() with the model's thresholds for the strategy, keeping every peak above them
+// for every category (passed_selection says whether it passed the box test), best first.
 // Throws Error(kInvalidInput) when the model lacks the strategy's codebook or threshold.
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features,
                                               const Strategy& strategy);

@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <unordered_set>
 
 #include "core/common/error.h"
 
@@ -87,6 +88,30 @@ bool hasEnoughNeighbours(const pcl::search::KdTree<pcl::PointNormal>& tree, int 
   pcl::Indices neighbours;
   std::vector<float> distances;
   return tree.radiusSearch(index, radius, neighbours, distances, static_cast<unsigned int>(enough)) >= enough;
+}
+
+// A cell of the grid of cubes of edge 1 / inverse_size with a corner at the origin.
+struct Cell {
+  int64_t x, y, z;
+  bool operator==(const Cell& o) const { return x == o.x && y == o.y && z == o.z; }
+};
+struct CellHash {
+  size_t operator()(const Cell& c) const {
+    return static_cast<size_t>(c.x * 73856093) ^ static_cast<size_t>(c.y * 19349663) ^
+           static_cast<size_t>(c.z * 83492791);
+  }
+};
+template <class Point>
+Cell cellOf(const Point& p, float inverse_size) {
+  return {static_cast<int64_t>(std::floor(p.x * inverse_size)), static_cast<int64_t>(std::floor(p.y * inverse_size)),
+          static_cast<int64_t>(std::floor(p.z * inverse_size))};
+}
+
+void requireAtLeast(int value, int minimum, const char* name) {
+  if (value < minimum) {
+    throw Error(ErrorCode::kInvalidInput, std::string("front end parameter ") + name + " = " + std::to_string(value) +
+                                              " must be >= " + std::to_string(minimum));
+  }
 }
 
 bool isFiniteFrame(const pcl::ReferenceFrame& frame) {
@@ -188,6 +213,132 @@ std::vector<int> detectBoundaryKeypoints(const Surface& surface, const KeypointP
     if (is_boundary[i]) keypoints.push_back(static_cast<int>(i));
   }
   return keypoints;
+}
+
+KeypointMethod resolveKeypointMethod(KeypointMethod method, const Scene& scene) {
+  if (method != KeypointMethod::kAuto) return method;
+  return scene.pixel_index.empty() ? KeypointMethod::kBoundary : KeypointMethod::kOccludingContour;
+}
+
+std::vector<int> detectOccludingContourPixels(const Scene& scene, const ContourParams& params) {
+  requireAtLeast(params.window, 1, "keypoints.contour.window");
+  requireAtLeast(params.max_gap, params.window, "keypoints.contour.max_gap (at least the window)");
+  requirePositive(params.min_jump, "keypoints.contour.min_jump");
+  if (!(params.relative_jump >= 0.0f && std::isfinite(params.relative_jump))) {
+    throw Error(ErrorCode::kInvalidInput, "front end parameter keypoints.contour.relative_jump = " +
+                                              std::to_string(params.relative_jump) + " must be >= 0 and finite");
+  }
+  const int width = scene.image_width, height = scene.image_height;
+  const size_t pixels = static_cast<size_t>(std::max(width, 0)) * static_cast<size_t>(std::max(height, 0));
+  if (scene.pixel_index.empty() || pixels == 0 || !scene.cloud || scene.pixel_index.size() != scene.cloud->size()) {
+    throw Error(ErrorCode::kInvalidInput,
+                scene.source + ": occluding-contour keypoints need an organized scene (a depth image or an organized "
+                               "cloud), got " + std::to_string(width) + "x" + std::to_string(height) + " pixels and " +
+                               std::to_string(scene.pixel_index.size()) + " pixel indices for " +
+                               std::to_string(scene.cloud ? scene.cloud->size() : 0) + " points");
+  }
+  std::vector<float> range(pixels, std::numeric_limits<float>::quiet_NaN());
+  for (size_t i = 0; i < scene.pixel_index.size(); ++i) {
+    const int pixel = scene.pixel_index[i];
+    if (pixel < 0 || static_cast<size_t>(pixel) >= pixels) {
+      throw Error(ErrorCode::kInvalidInput, scene.source + ": pixel index " + std::to_string(pixel) + " is outside the " +
+                                                std::to_string(width) + "x" + std::to_string(height) + " image");
+    }
+    range[pixel] = ((*scene.cloud)[i].getVector3fMap() - scene.sensor_origin).norm();
+  }
+  constexpr int kDirections[8][2] = {{1, 0}, {-1, 0}, {0, 1}, {0, -1}, {1, 1}, {1, -1}, {-1, 1}, {-1, -1}};
+  std::vector<uint8_t> is_edge(pixels, 0);
+#pragma omp parallel for schedule(dynamic, 16)
+  for (int row = 0; row < height; ++row) {
+    for (int col = 0; col < width; ++col) {
+      const float r = range[static_cast<size_t>(row) * width + col];
+      if (std::isnan(r)) continue;
+      const float jump = std::max(params.min_jump, params.relative_jump * r);
+      bool occluding = false, shadow = false;
+      for (const auto& d : kDirections) {
+        bool seen = false, left_image = false;
+        for (int step = 1; step <= params.max_gap; ++step) {
+          const int c = col + step * d[0], w = row + step * d[1];
+          if (c < 0 || c >= width || w < 0 || w >= height) {
+            left_image = true;
+            break;
+          }
+          const float other = range[static_cast<size_t>(w) * width + c];
+          if (!std::isnan(other)) {
+            seen = true;
+            occluding |= other - r > jump;
+            shadow |= r - other > jump;
+          }
+          if (seen && step >= params.window) break;
+        }
+        // No return all the way across the gap: a silhouette against empty space.
+        occluding |= !seen && !left_image;
+      }
+      is_edge[static_cast<size_t>(row) * width + col] = occluding && !shadow;
+    }
+  }
+  std::vector<int> edges;
+  for (size_t i = 0; i < scene.pixel_index.size(); ++i) {
+    if (is_edge[scene.pixel_index[i]]) edges.push_back(static_cast<int>(i));
+  }
+  return edges;
+}
+
+std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud, const std::vector<int>& point_indices,
+                                      float max_distance) {
+  requirePositive(max_distance, "nearestSurfacePoints max_distance");
+  for (int i : point_indices) {
+    if (i < 0 || static_cast<size_t>(i) >= cloud.size()) {
+      throw Error(ErrorCode::kInvalidInput, "edge point index " + std::to_string(i) + " is outside the cloud of " +
+                                                std::to_string(cloud.size()) + " points");
+    }
+  }
+  if (surface.empty() || point_indices.empty()) return {};
+  pcl::search::KdTree<pcl::PointNormal> tree(/*sorted=*/false);
+  tree.setInputCloud(borrow(surface));
+  const float max_squared = max_distance * max_distance;
+  std::vector<int> nearest_of(point_indices.size(), -1);
+#pragma omp parallel for schedule(dynamic, 256)
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(point_indices.size()); ++i) {
+    pcl::PointNormal query;
+    query.getVector3fMap() = cloud[point_indices[i]].getVector3fMap();
+    pcl::Indices nearest(1);
+    std::vector<float> squared(1);
+    if (tree.nearestKSearch(query, 1, nearest, squared) == 1 && squared[0] <= max_squared) nearest_of[i] = nearest[0];
+  }
+  std::vector<uint8_t> selected(surface.size(), 0);
+  for (int n : nearest_of) {
+    if (n >= 0) selected[n] = 1;
+  }
+  std::vector<int> indices;
+  for (size_t i = 0; i < surface.size(); ++i) {
+    if (selected[i]) indices.push_back(static_cast<int>(i));
+  }
+  return indices;
+}
+
+std::vector<int> thinKeypoints(const Surface& surface, const std::vector<int>& keypoints, float spacing) {
+  if (spacing == 0.0f) return keypoints;
+  requirePositive(spacing, "keypoints.min_spacing");
+  const float inverse_spacing = 1.0f / spacing;
+  std::unordered_set<Cell, CellHash> taken;
+  std::vector<int> kept;
+  for (int k : keypoints) {
+    if (taken.insert(cellOf(surface.at(static_cast<size_t>(k)), inverse_spacing)).second) kept.push_back(k);
+  }
+  return kept;
+}
+
+std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, const KeypointParams& params,
+                                 float leaf_size) {
+  std::vector<int> keypoints;
+  if (resolveKeypointMethod(params.method, scene) == KeypointMethod::kBoundary) {
+    keypoints = detectBoundaryKeypoints(surface, params);
+  } else {
+    keypoints = nearestSurfacePoints(surface, *scene.cloud, detectOccludingContourPixels(scene, params.contour),
+                                     leaf_size);
+  }
+  return thinKeypoints(surface, keypoints, params.min_spacing);
 }
 
 Features describe(const Surface& surface, const std::vector<int>& keypoints, const ShotParams& params) {
@@ -302,7 +453,7 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
   std::vector<int> keypoints;
   {
     ScopedStage stage(timings, "keypoints");
-    keypoints = detectBoundaryKeypoints(*result.surface, params.keypoints);
+    keypoints = detectKeypoints(scene, *result.surface, params.keypoints, params.downsample.leaf_size);
   }
   result.keypoint_candidates = keypoints.size();
   throwIfStopped(should_stop, "keypoints");

@@ -65,6 +65,12 @@ struct BoxStats {
   float mean_volume = 0, std_volume = 0, mean_max_edge = 0, std_max_edge = 0;
 };
 
+// Leave-one-out statistics behind a threshold: the held-out models' scores at their centres.
+struct ThresholdStats {
+  float mean = 0;
+  float std = 0;
+};
+
 struct CategoryModel {
   std::string name;
   float bin_size = 0.1f;  // Hough bin edge (m)
@@ -72,7 +78,8 @@ struct CategoryModel {
   std::optional<Codebook> own_codebook;  // separated codebook, when trained
   VoteTable global_votes;                // votes under the global codebook's codewords
   VoteTable own_votes;                   // votes under own_codebook's codewords
-  std::map<ThresholdKey, float> thresholds;  // leave-one-out mean - std per combination
+  std::map<ThresholdKey, float> thresholds;  // leave-one-out mean - std per combination, floored
+  std::map<ThresholdKey, ThresholdStats> threshold_stats;  // behind `thresholds`; empty in older files
   int training_models = 0;
   int training_scans = 0;
 };

@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <cmath>
 #include <cstdio>
 #include <fstream>
 #include <set>
@@ -146,6 +147,36 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
   m.front_end.keypoints.angle_threshold = fe.boundary_angle_threshold();
   m.front_end.shot.radius = fe.shot_radius();
   m.front_end.shot.min_neighbours = fe.shot_min_neighbours();
+  switch (fe.keypoint_method()) {
+    case v1::FrontEndParams::KEYPOINT_METHOD_UNSPECIFIED:  // written before contours existed
+    case v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY:
+      m.front_end.keypoints.method = KeypointMethod::kBoundary;
+      break;
+    case v1::FrontEndParams::KEYPOINT_METHOD_AUTO:
+      m.front_end.keypoints.method = KeypointMethod::kAuto;
+      break;
+    case v1::FrontEndParams::KEYPOINT_METHOD_OCCLUDING_CONTOUR:
+      m.front_end.keypoints.method = KeypointMethod::kOccludingContour;
+      break;
+    default:
+      r.fail("front-end parameters have unknown keypoint_method " + std::to_string(fe.keypoint_method()));
+  }
+  auto& contour = m.front_end.keypoints.contour;
+  contour.window = fe.contour_window();
+  contour.min_jump = fe.contour_min_jump();
+  contour.relative_jump = fe.contour_relative_jump();
+  contour.max_gap = fe.contour_max_gap();
+  m.front_end.keypoints.min_spacing = fe.keypoint_min_spacing();
+  if (m.front_end.keypoints.method != KeypointMethod::kBoundary &&
+      !(contour.window >= 1 && contour.max_gap >= contour.window && contour.min_jump > 0 &&
+        contour.relative_jump >= 0 && std::isfinite(contour.relative_jump))) {
+    r.fail("front-end contour parameters are invalid: window " + std::to_string(contour.window) + ", max_gap " +
+           std::to_string(contour.max_gap) + ", min_jump " + std::to_string(contour.min_jump) + ", relative_jump " +
+           std::to_string(contour.relative_jump));
+  }
+  if (!(m.front_end.keypoints.min_spacing >= 0 && std::isfinite(m.front_end.keypoints.min_spacing))) {
+    r.fail("front-end keypoint_min_spacing " + std::to_string(m.front_end.keypoints.min_spacing) + " is not >= 0");
+  }
   if (!(fe.leaf_size() > 0) || !(fe.normal_radius() > 0) || !(fe.boundary_radius() > 0) || !(fe.shot_radius() > 0)) {
     r.fail("front-end parameters have a non-positive radius or leaf size");
   }
@@ -184,6 +215,7 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
                              r.strategy(t.activation(), where + " threshold"),
                              r.weighting(t.weighting(), where + " threshold")};
       cat.thresholds[key] = t.value();
+      if (t.has_mean() && t.has_std()) cat.threshold_stats[key] = {t.mean(), t.std()};
     }
     cat.training_models = c.training_models();
     cat.training_scans = c.training_scans();
@@ -212,6 +244,22 @@ std::string serializeModel(const Model& model) {
   fe->set_boundary_angle_threshold(model.front_end.keypoints.angle_threshold);
   fe->set_shot_radius(model.front_end.shot.radius);
   fe->set_shot_min_neighbours(model.front_end.shot.min_neighbours);
+  switch (model.front_end.keypoints.method) {
+    case KeypointMethod::kAuto:
+      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);
+      break;
+    case KeypointMethod::kBoundary:
+      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY);
+      break;
+    case KeypointMethod::kOccludingContour:
+      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_OCCLUDING_CONTOUR);
+      break;
+  }
+  fe->set_contour_window(model.front_end.keypoints.contour.window);
+  fe->set_contour_min_jump(model.front_end.keypoints.contour.min_jump);
+  fe->set_contour_relative_jump(model.front_end.keypoints.contour.relative_jump);
+  fe->set_contour_max_gap(model.front_end.keypoints.contour.max_gap);
+  fe->set_keypoint_min_spacing(model.front_end.keypoints.min_spacing);
   toProto(model.trained_knn, data.mutable_trained_knn());
   toProto(model.trained_cutoff, data.mutable_trained_cutoff());
   if (model.global_codebook) toProto(*model.global_codebook, data.mutable_global_codebook());
@@ -237,6 +285,10 @@ std::string serializeModel(const Model& model) {
                                                                    : v1::ACTIVATION_STRATEGY_CUTOFF);
       t->set_weighting(toProto(key.weighting));
       t->set_value(value);
+      if (const auto stats = c.threshold_stats.find(key); stats != c.threshold_stats.end()) {
+        t->set_mean(stats->second.mean);
+        t->set_std(stats->second.std);
+      }
     }
     out->set_training_models(c.training_models);
     out->set_training_scans(c.training_scans);

@@ -1,6 +1,7 @@
 #pragma once
 // Recognition: features -> codeword activations -> weighted votes in a 3D Hough space per
 // category -> every local maximum above the threshold -> box selection -> hypotheses.
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -57,19 +58,50 @@ struct RecognitionResult {
 // model was not trained for (e.g. separated codebook missing) or a scene with no points left.
 RecognitionResult recognize(const Model& model, const Scene& scene, const RecognitionOptions& options);
 
-// --- The stages, exposed for training (leave-one-out) and evaluation. ---
+// recognize() after the front end: activation, voting, peak search and box selection on
+// already extracted features (evaluation runs the front end once and every strategy on it).
+// Same errors as recognize() except for the scene; the point counts of the result stay 0.
+RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options);
 
-// Votes of one category's ISM for already extracted features.
+// --- The stages, exposed for training (leave-one-out), evaluation and tests. ---
+
+// Votes of one category's ISM for already extracted features, materialised (debug output,
+// leave-one-out scores); recognition itself accumulates them into a HoughSpace instead.
 std::vector<Vote> castVotes(const Model& model, int category_index, const Features& features,
                             const std::vector<Activation>& activations, const Strategy& strategy);
-
-// Local maxima of the Hough space of one category's votes above `threshold`.
-std::vector<Hypothesis> findPeaks(const std::vector<Vote>& votes, const Features& features,
-                                  const CategoryModel& category, float threshold);
 
 // Summed weight of the votes inside the cube of edge bin_size centred at `center`: the score a
 // hypothesis there would get (used for the leave-one-out thresholds).
 float scoreAt(const std::vector<Vote>& votes, const Eigen::Vector3f& center, float bin_size);
+
+// One category's sparse 3D Hough space for one scene. The votes are accumulated bin by bin
+// (weight and weighted position) as they are cast, in parallel over keypoints, and never
+// stored: a room scan casts tens of millions. Results do not depend on thread scheduling; a
+// different thread count changes the (double) sums only in their last bits.
+// Keeps references to its arguments, which must outlive it.
+class HoughSpace {
+ public:
+  // Throws Error(kInvalidInput) for an activation outside the features or the vote table.
+  HoughSpace(const Model& model, int category_index, const Features& features,
+             const std::vector<Activation>& activations, const Strategy& strategy);
+  ~HoughSpace();
+  HoughSpace(const HoughSpace&) = delete;
+  HoughSpace& operator=(const HoughSpace&) = delete;
+
+  // Every bin that is a local maximum of its 26 neighbours (ties: the lower bin coordinates
+  // win), centred at the weighted mean of its votes and scored like scoreAt() there, when the
+  // score exceeds `threshold`; within bin_size of a better one it is dropped. Best first.
+  // The support is found by casting the votes again and keeping only those that land next to
+  // a peak.
+  std::vector<Hypothesis> findPeaks(float threshold) const;
+
+  size_t votes() const;  // cast into the space
+  size_t bins() const;   // occupied
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // PCA oriented box of points.
 OrientedBox fitOrientedBox(const std::vector<Eigen::Vector3f>& points);

@@ -90,8 +90,9 @@ Mesh loadObj(const std::string& path) {
         polygon.push_back(static_cast<int>(resolved));
         p = end + std::strcspn(end, " \t\r");
       }
-      if (polygon.size() < 3) fail(path, line_no, "face with fewer than three corners");
-      addPolygon(mesh, polygon);
+      // Exporters write edges as two-corner faces (Sweet Home 3D's office chairs do); they
+      // have no area, so a depth sensor never sees them.
+      if (polygon.size() >= 3) addPolygon(mesh, polygon);
     }
   }
   if (in.bad()) throw Error(ErrorCode::kIo, "mesh file " + path + ": read error after line " + std::to_string(line_no));
@@ -315,8 +316,7 @@ Mesh loadPly(const std::string& path) {
           if (corners) polygon.push_back(static_cast<int>(value));
         }
         if (!corners) continue;
-        if (polygon.size() < 3) fail(path, 0, "face " + std::to_string(i) + " has fewer than three corners");
-        addPolygon(mesh, polygon);
+        if (polygon.size() >= 3) addPolygon(mesh, polygon);  // edges have no area (see the OBJ reader)
       }
       if (is_vertex) mesh.vertices.push_back(xyz);
     }

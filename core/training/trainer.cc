@@ -319,6 +319,10 @@ Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<s
     if (params.progress) params.progress(line);
   };
   if (categories.empty()) throw Error(ErrorCode::kInvalidInput, "training: no categories");
+  if (!(params.threshold_floor >= 0 && params.threshold_floor <= 1)) {
+    throw Error(ErrorCode::kInvalidInput,
+                "training: threshold_floor " + std::to_string(params.threshold_floor) + " is not in [0, 1]");
+  }
   if (!params.global_codebook && !params.separated_codebooks) {
     throw Error(ErrorCode::kInvalidInput, "training: neither a global nor separated codebooks requested");
   }
@@ -455,22 +459,31 @@ Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<s
         }
       });
       std::string line = category.name + " " + toString(type) + " thresholds:";
+      bool floored_any = false, useless_any = false;
       for (size_t a = 0; a < activations.size(); ++a) {
         for (size_t w = 0; w < weightings.size(); ++w) {
           std::vector<double> values;
           for (const auto& s : scores) values.push_back(s[a * 3 + w]);
           const MeanStd stats = meanStd(values);
-          const float threshold = static_cast<float>(stats.mean - stats.std);
-          category.thresholds[{type, activations[a].strategy, weightings[w]}] = threshold;
+          const double seed_rule = stats.mean - stats.std, floor = params.threshold_floor * stats.mean;
+          const bool floored = seed_rule < floor;
+          const float threshold = static_cast<float>(floored ? floor : seed_rule);
+          const ThresholdKey key{type, activations[a].strategy, weightings[w]};
+          category.thresholds[key] = threshold;
+          category.threshold_stats[key] = {static_cast<float>(stats.mean), static_cast<float>(stats.std)};
           line += std::string(" ") + toString(activations[a].strategy) + "/" + toString(weightings[w]) + "=" +
                   fixed(threshold, 3);
-          // Stored as measured; flagged because such a threshold lets every peak through.
+          if (floored) line += "(floored; mean " + fixed(stats.mean, 3) + " - std " + fixed(stats.std, 3) + ")";
+          floored_any |= floored;
           if (!(threshold > 0)) line += "(!)";
+          useless_any |= !(threshold > 0);
         }
       }
-      if (line.find("(!)") != std::string::npos) {
-        line += "  (!) = held-out scores spread wider than their mean: pass a minimum score when detecting";
+      if (floored_any) {
+        line += "  floored = mean - std fell below " + fixed(params.threshold_floor, 2) +
+                " x the mean held-out score (few or dissimilar training models)";
       }
+      if (useless_any) line += "  (!) = a threshold <= 0 admits every peak: pass a minimum score when detecting";
       report(line);
     }
     report(std::string(toString(type)) + " leave-one-out thresholds in " + fixed(secondsSince(loo_start), 1) + " s");

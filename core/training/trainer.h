@@ -29,6 +29,10 @@ struct TrainingParams {
   KMeansParams separated_kmeans{150, 30, 1e-4f, 60000, 42};
   ActivationParams knn{ActivationStrategy::kKnn, 1, 0.25f};
   ActivationParams cutoff{ActivationStrategy::kCutoff, 1, 0.25f};
+  // Leave-one-out threshold = mean - std of the held-out scores (the seed's rule), but at least
+  // this fraction of the mean: with few, dissimilar models the std can exceed the mean, and a
+  // threshold <= 0 would admit every peak. In [0, 1]; 0 keeps the seed's rule unchanged.
+  float threshold_floor = 0.5f;
   std::map<std::string, float> bin_sizes;  // per category; others get default_bin_size
   float default_bin_size = 0.1f;
   int threads = 0;  // 0 = all cores

@@ -2,18 +2,23 @@
 
 #include <gtest/gtest.h>
 
+#include <cstdlib>
+#include <map>
 #include <numeric>
+#include <random>
+#include <tuple>
 
 #include "core/common/error.h"
 
 namespace ism {
 namespace {
 
-// A one-category model over a global codebook of `codewords` 4-d codewords whose vote table
+// A one-category model whose global codebook is the n unit vectors of R^n and whose vote table
 // holds `votes[i]` under codeword i.
 Model modelWithVotes(const std::vector<std::vector<Eigen::Vector3f>>& votes, float bin_size = 0.1f) {
   Model m;
-  m.global_codebook = Codebook(DescriptorMatrix::Identity(static_cast<Eigen::Index>(votes.size()), 4));
+  const auto n = static_cast<Eigen::Index>(votes.size());
+  m.global_codebook = Codebook(DescriptorMatrix::Identity(n, n));
   CategoryModel c;
   c.name = "chair";
   c.bin_size = bin_size;
@@ -41,14 +46,15 @@ struct HandMadeObject {
   std::vector<Activation> activations;
 };
 
-HandMadeObject handMadeObject(const Eigen::Vector3f& center, int keypoints, int first_keypoint = 0) {
+// `spread` moves each stored vote by up to that much so that the peak is a cluster, not a point.
+HandMadeObject handMadeObject(const Eigen::Vector3f& center, int keypoints, int first_keypoint = 0, float spread = 0) {
   HandMadeObject o;
   for (int i = 0; i < keypoints; ++i) {
     const Eigen::Vector3f p = center + 0.4f * Eigen::Vector3f::Random();
     const Eigen::Matrix3f lrf = Eigen::Quaternionf::UnitRandom().toRotationMatrix().transpose();
     o.features.positions.push_back(p);
     o.features.lrfs.push_back(lrf);
-    o.votes.push_back({lrf * (center - p)});
+    o.votes.push_back({lrf * (center - p + spread * Eigen::Vector3f::Random())});
     o.activations.push_back({first_keypoint + i, first_keypoint + i, 0.0f});
   }
   return o;
@@ -65,7 +71,7 @@ TEST(CastVotes, VotesRotatedBackLandOnTheCentre) {
     EXPECT_EQ(v.weight, 1.0f);
     EXPECT_EQ(v.category, 0);
   }
-  const auto peaks = findPeaks(votes, o.features, m.categories[0], 10.0f);
+  const auto peaks = HoughSpace(m, 0, o.features, o.activations, strategy(VoteWeighting::kCategorization)).findPeaks(10.0f);
   ASSERT_EQ(peaks.size(), 1u);
   EXPECT_LT((peaks[0].center - center).norm(), 1e-5f);
   EXPECT_FLOAT_EQ(peaks[0].score, 50.0f);
@@ -102,7 +108,7 @@ TEST(CastVotes, RejectsActivationsOutsideTheTable) {
 
 TEST(FindPeaks, TwoSeparatedClustersGiveTwoHypotheses) {
   const Eigen::Vector3f a(0, 0, 0.5f), b(1.5f, 0.3f, 0.5f);
-  HandMadeObject first = handMadeObject(a, 30), second = handMadeObject(b, 20, 30);
+  HandMadeObject first = handMadeObject(a, 30, 0, 0.02f), second = handMadeObject(b, 20, 30, 0.02f);
   Features f = first.features;
   f.positions.insert(f.positions.end(), second.features.positions.begin(), second.features.positions.end());
   f.lrfs.insert(f.lrfs.end(), second.features.lrfs.begin(), second.features.lrfs.end());
@@ -111,26 +117,150 @@ TEST(FindPeaks, TwoSeparatedClustersGiveTwoHypotheses) {
   auto activations = first.activations;
   activations.insert(activations.end(), second.activations.begin(), second.activations.end());
   const Model m = modelWithVotes(table);
-  auto votes = castVotes(m, 0, f, activations, strategy(VoteWeighting::kCategorization));
-  // Spread the votes a little so the peak is a real cluster, not one point.
-  for (auto& v : votes) v.position += 0.02f * Eigen::Vector3f::Random();
-  const auto peaks = findPeaks(votes, f, m.categories[0], 5.0f);
+  const Strategy cw = strategy(VoteWeighting::kCategorization);
+  const HoughSpace hough(m, 0, f, activations, cw);
+  EXPECT_EQ(hough.votes(), 50u);
+  const auto peaks = hough.findPeaks(5.0f);
   ASSERT_EQ(peaks.size(), 2u);
   EXPECT_LT((peaks[0].center - a).norm(), 0.05f);
   EXPECT_LT((peaks[1].center - b).norm(), 0.05f);
   EXPECT_GE(peaks[0].score, peaks[1].score);
   EXPECT_EQ(peaks[1].support, 20);
+  const auto votes = castVotes(m, 0, f, activations, cw);
   for (const auto& p : peaks) {
     EXPECT_FLOAT_EQ(p.score, scoreAt(votes, p.center, m.categories[0].bin_size));
     EXPECT_GT(p.score, p.threshold);
   }
   // A threshold above the weaker cluster keeps only the stronger one.
-  EXPECT_EQ(findPeaks(votes, f, m.categories[0], 25.0f).size(), 1u);
+  EXPECT_EQ(hough.findPeaks(25.0f).size(), 1u);
 }
 
 TEST(FindPeaks, NoVotesNoHypotheses) {
   const Model m = modelWithVotes({{Eigen::Vector3f::Zero()}});
-  EXPECT_TRUE(findPeaks({}, Features{}, m.categories[0], 0.0f).empty());
+  const HoughSpace hough(m, 0, Features{}, {}, strategy(VoteWeighting::kCategorization));
+  EXPECT_EQ(hough.bins(), 0u);
+  EXPECT_TRUE(hough.findPeaks(0.0f).empty());
+}
+
+// The definition of the peak search, written for clarity: every vote in a std::map of bins,
+// every score by brute force over all votes.
+std::vector<Hypothesis> referencePeaks(const std::vector<Vote>& votes, const Features& features,
+                                       const CategoryModel& category, float threshold) {
+  using Bin = std::tuple<int, int, int>;
+  struct Sum {
+    double weight = 0;
+    Eigen::Vector3d weighted = Eigen::Vector3d::Zero();
+  };
+  const float s = category.bin_size, inverse = 1.0f / s;  // a vote's bin: floor(p * (1 / bin size))
+  std::map<Bin, Sum> bins;  // ordered by coordinates: the tie-break and the candidate order
+  for (const auto& v : votes) {
+    const auto bin = [&](float x) { return static_cast<int>(std::floor(x * inverse)); };
+    Sum& sum = bins[{bin(v.position.x()), bin(v.position.y()), bin(v.position.z())}];
+    sum.weight += v.weight;
+    sum.weighted += v.weight * v.position.cast<double>();
+  }
+  std::vector<Hypothesis> peaks;
+  for (const auto& [bin, sum] : bins) {
+    if (!(sum.weight > 0)) continue;
+    double bound = 0;
+    bool maximum = true;
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const Bin n{std::get<0>(bin) + dx, std::get<1>(bin) + dy, std::get<2>(bin) + dz};
+          const auto it = bins.find(n);
+          if (it == bins.end()) continue;
+          bound += it->second.weight;
+          if (it->second.weight > sum.weight || (it->second.weight == sum.weight && n < bin)) maximum = false;
+        }
+    if (!maximum || !(bound > threshold)) continue;
+    Hypothesis h;
+    h.category = category.name;
+    h.threshold = threshold;
+    h.center = (sum.weighted / sum.weight).cast<float>();
+    h.score = scoreAt(votes, h.center, s);
+    if (!(h.score > threshold)) continue;
+    std::vector<int> support;
+    for (const auto& v : votes) {
+      if (((v.position - h.center).cwiseAbs().array() <= s / 2).all()) support.push_back(v.keypoint);
+    }
+    std::sort(support.begin(), support.end());
+    support.erase(std::unique(support.begin(), support.end()), support.end());
+    for (int k : support) h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
+    h.support = static_cast<int>(support.size());
+    peaks.push_back(h);
+  }
+  std::stable_sort(peaks.begin(), peaks.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+  std::vector<Hypothesis> kept;
+  for (const auto& p : peaks) {
+    if (std::none_of(kept.begin(), kept.end(), [&](const Hypothesis& k) { return (k.center - p.center).norm() < s; })) {
+      kept.push_back(p);
+    }
+  }
+  return kept;
+}
+
+// Random scene: three objects whose keypoints vote for their centres, and clutter keypoints
+// activating codewords with random votes; enough keypoints to split them between threads.
+TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<float> unit(-1.0f, 1.0f), distance(0.0f, 0.6f);
+  HandMadeObject scene;
+  for (const Eigen::Vector3f& center : {Eigen::Vector3f(0, 0, 0.5f), Eigen::Vector3f(1.2f, 0.4f, 0.4f),
+                                        Eigen::Vector3f(-0.8f, 1.5f, 0.45f)}) {
+    const HandMadeObject o = handMadeObject(center, 150, static_cast<int>(scene.votes.size()), 0.05f);
+    scene.features.positions.insert(scene.features.positions.end(), o.features.positions.begin(), o.features.positions.end());
+    scene.features.lrfs.insert(scene.features.lrfs.end(), o.features.lrfs.begin(), o.features.lrfs.end());
+    scene.votes.insert(scene.votes.end(), o.votes.begin(), o.votes.end());
+    scene.activations.insert(scene.activations.end(), o.activations.begin(), o.activations.end());
+  }
+  const int object_codewords = static_cast<int>(scene.votes.size()), clutter_codewords = 40;
+  for (int c = 0; c < clutter_codewords; ++c) {
+    std::vector<Eigen::Vector3f> list;
+    for (int j = 0; j < 30; ++j) list.emplace_back(unit(rng), unit(rng), unit(rng));
+    scene.votes.push_back(list);
+  }
+  // Object keypoints also activate a clutter codeword; clutter keypoints one to three of them.
+  for (int k = 0; k < object_codewords; ++k) scene.activations.push_back({k, object_codewords + k % clutter_codewords, distance(rng)});
+  for (int k = object_codewords; k < 2000; ++k) {
+    scene.features.positions.emplace_back(2 * unit(rng), 2 * unit(rng), 0.5f + 0.5f * unit(rng));
+    scene.features.lrfs.push_back(Eigen::Quaternionf::UnitRandom().toRotationMatrix());
+    const int activated = 1 + k % 3;
+    for (int a = 0; a < activated; ++a) {
+      scene.activations.push_back({k, object_codewords + static_cast<int>(rng() % clutter_codewords), distance(rng)});
+    }
+  }
+  const Model m = modelWithVotes(scene.votes);
+  const CategoryModel& category = m.categories[0];
+  // Thresholds low enough for clutter maxima (CW: many equal bin weights, so the tie rule counts).
+  for (auto [weighting, threshold] : {std::pair{VoteWeighting::kCategorization, 7.0f},
+                                      std::pair{VoteWeighting::kLocalization, 0.15f},
+                                      std::pair{VoteWeighting::kActivation, 0.12f}}) {
+    SCOPED_TRACE(toString(weighting));
+    const Strategy st = strategy(weighting);
+    const auto votes = castVotes(m, 0, scene.features, scene.activations, st);
+    const auto expected = referencePeaks(votes, scene.features, category, threshold);
+    const HoughSpace hough(m, 0, scene.features, scene.activations, st);
+    EXPECT_EQ(hough.votes(), votes.size());
+    const auto actual = hough.findPeaks(threshold);
+    ASSERT_GE(expected.size(), 10u);  // the objects and clutter maxima
+    ASSERT_EQ(actual.size(), expected.size());
+    for (size_t i = 0; i < actual.size(); ++i) {
+      SCOPED_TRACE(i);
+      EXPECT_LT((actual[i].center - expected[i].center).norm(), 1e-5f);
+      EXPECT_NEAR(actual[i].score, expected[i].score, 1e-5f * expected[i].score);
+      EXPECT_EQ(actual[i].support_keypoints, expected[i].support_keypoints);
+      EXPECT_EQ(actual[i].support, expected[i].support);
+      EXPECT_EQ(actual[i].category, category.name);
+    }
+    // Same input, same answer: thread scheduling must not leak into the sums.
+    const auto again = HoughSpace(m, 0, scene.features, scene.activations, st).findPeaks(threshold);
+    ASSERT_EQ(again.size(), actual.size());
+    for (size_t i = 0; i < again.size(); ++i) {
+      EXPECT_EQ(again[i].score, actual[i].score);
+      EXPECT_EQ(again[i].center, actual[i].center);
+    }
+  }
 }
 
 TEST(BoxSelection, FitsARotatedBoxAndAppliesTheLimits) {
@@ -191,6 +321,30 @@ TEST(Recognize, StrategyTheModelLacksIsInvalid) {
   }
   options.strategy = strategy(VoteWeighting::kActivation);  // no threshold trained for it
   EXPECT_THROW(recognize(m, onePointScene(), options), Error);
+}
+
+TEST(Recognize, FeaturesOfAnObjectGiveItsHypothesisAtTheModelsThreshold) {
+  std::srand(3);
+  const Eigen::Vector3f center(0.3f, -0.2f, 0.6f);
+  HandMadeObject o = handMadeObject(center, 40, 0, 0.02f);
+  Model m = modelWithVotes(o.votes);
+  m.categories[0].box = {0.0f, 10.0f, 10.0f};  // the random keypoints' box: up to 1.4 m long
+  o.features.descriptors = DescriptorMatrix::Identity(40, 40);  // keypoint i activates codeword i
+  RecognitionOptions options;  // global 1-NN LW: each keypoint's one vote weighs 1
+  options.return_keypoints = true;
+  const RecognitionResult result = recognizeFeatures(m, o.features, options);
+  EXPECT_EQ(result.keypoints, 40u);
+  ASSERT_EQ(result.hypotheses.size(), 1u);
+  const Hypothesis& h = result.hypotheses[0];
+  EXPECT_LT((h.center - center).norm(), 0.03f);
+  EXPECT_NEAR(h.score, 40.0f, 1e-4f);
+  EXPECT_EQ(h.threshold, 0.5f);  // the model's
+  EXPECT_EQ(h.support_keypoints.size(), 40u);
+  std::vector<std::string> stages;
+  for (const auto& [name, ms] : result.timings.stages) stages.push_back(name);
+  EXPECT_EQ(stages, (std::vector<std::string>{"activate", "vote", "hypotheses", "select"}));
+  options.min_score = 40.5f;
+  EXPECT_TRUE(recognizeFeatures(m, o.features, options).hypotheses.empty());
 }
 
 TEST(Recognize, EmptySceneIsInvalid) {

@@ -72,7 +72,8 @@ TEST(LoadMesh, ObjPolygonsOfAnySizeNegativeIndicesAndAttributes) {
                                      "f 1/1/1 2/1/1 3/1/1 4/1/1\n"
                                      "v 0 0 1\nv 1 0 1\nv 1.5 0.5 1\nv 1 1 1\nv 0 1 1\r\n"
                                      "f -5 -4 -3 -2 -1\r\n"
-                                     "f 1//1 2//1 5//1\n");
+                                     "f 1//1 2//1 5//1\n"
+                                     "f 1 2\n");  // an edge written as a face: no area, skipped
   const Mesh mesh = loadMesh(path);
   ASSERT_EQ(mesh.vertices.size(), 9u);
   ASSERT_EQ(mesh.triangles.size(), 2u + 3u + 1u);

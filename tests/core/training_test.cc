@@ -2,10 +2,13 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
 #include "core/common/error.h"
+#include "core/model/model_file.h"
 #include "core/recognition/recognizer.h"
 
 namespace ism {
@@ -21,14 +24,17 @@ constexpr int kScansPerModel = 4;
 // category has the same descriptor prototype and the same pose relative to the object, only
 // the whole object moves and turns between scans. Then codeword j holds identical votes, and a
 // held-out scan's keypoint j gets (kModels - 1) * kScansPerModel CW votes, all at its centre.
-std::vector<TrainingScan> handMadeScans(const std::string& category, uint32_t seed) {
+// Model `odd_model` (if any) has the same descriptors but another keypoint geometry, as a
+// dissimilar training model would: its votes miss the other models' centres and theirs miss its.
+std::vector<TrainingScan> handMadeScans(const std::string& category, uint32_t seed, int odd_model = -1) {
   std::srand(seed);
   DescriptorMatrix prototypes = DescriptorMatrix::Random(kKeypoints, 16);
   prototypes.rowwise().normalize();
-  std::vector<Eigen::Vector3f> offsets;
+  std::vector<Eigen::Vector3f> offsets, odd_offsets;
   std::vector<Eigen::Matrix3f> lrfs;
   for (int j = 0; j < kKeypoints; ++j) {
     offsets.push_back(0.3f * Eigen::Vector3f::Random());
+    odd_offsets.push_back(offsets.back() + Eigen::Vector3f(0.5f, 0, 0));
     lrfs.push_back(Eigen::Quaternionf::UnitRandom().toRotationMatrix());
   }
   std::vector<TrainingScan> scans;
@@ -41,7 +47,8 @@ std::vector<TrainingScan> handMadeScans(const std::string& category, uint32_t se
       const Eigen::Matrix3f turn = Eigen::AngleAxisf(0.4f * s + m, Eigen::Vector3f::UnitZ()).toRotationMatrix();
       scan.features.descriptors = prototypes + 1e-3f * DescriptorMatrix::Random(kKeypoints, 16);
       for (int j = 0; j < kKeypoints; ++j) {
-        scan.features.positions.push_back(scan.object_center + turn * offsets[static_cast<size_t>(j)]);
+        const auto& offset = (m == odd_model ? odd_offsets : offsets)[static_cast<size_t>(j)];
+        scan.features.positions.push_back(scan.object_center + turn * offset);
         scan.features.lrfs.push_back(lrfs[static_cast<size_t>(j)] * turn.transpose());
       }
       scan.keypoint_box = fitOrientedBox(scan.features.positions);
@@ -100,6 +107,46 @@ TEST(TrainFromScans, LeaveOneOutThresholdsHaveTheKnownValues) {
     EXPECT_NEAR(c.box.max_volume, c.box.mean_volume, 1e-5f);
     EXPECT_NEAR(c.box.max_edge, scans[&c == &model.categories[0] ? 0 : scans.size() - 1].keypoint_box.longestEdge(), 1e-4f);
   }
+}
+
+// Held out, models 0 and 1 get the votes of the other's 4 scans at their centre, model 2 none:
+// CW scores 48, 48, 0 per scan (4 scans each), mean 32, std sqrt(512) = 22.6. The seed's
+// mean - std = 9.4 is below half the mean, so the threshold is floored to 16.
+TEST(TrainFromScans, ThresholdsOfDissimilarModelsAreFlooredAndTheStatisticsKept) {
+  TrainingParams params = smallParams();
+  params.separated_codebooks = false;
+  params.global_kmeans.k = kKeypoints;  // one category: one codeword per prototype
+  std::vector<std::string> lines;
+  params.progress = [&](const std::string& line) { lines.push_back(line); };
+  const Model model = trainFromScans(handMadeScans("stool", 3, 2), {"stool"}, params);
+  const ThresholdKey cw{CodebookType::kGlobal, ActivationStrategy::kKnn, VoteWeighting::kCategorization};
+  const CategoryModel& c = model.categories.at(0);
+  const float mean = 2.0f / 3 * kKeypoints * kScansPerModel, std = std::sqrt(512.0f);
+  EXPECT_NEAR(c.threshold_stats.at(cw).mean, mean, 1e-3f);
+  EXPECT_NEAR(c.threshold_stats.at(cw).std, std, 1e-3f);
+  EXPECT_NEAR(c.thresholds.at(cw), 0.5f * mean, 1e-3f);
+  ASSERT_EQ(c.threshold_stats.size(), c.thresholds.size());
+  for (const auto& [key, threshold] : c.thresholds) {
+    const ThresholdStats& stats = c.threshold_stats.at(key);
+    EXPECT_FLOAT_EQ(threshold, std::max(stats.mean - stats.std, 0.5f * stats.mean));
+    EXPECT_GT(threshold, 0.0f);
+  }
+  EXPECT_TRUE(std::any_of(lines.begin(), lines.end(), [](const std::string& l) {
+    return l.find("knn/cw=16.000(floored; mean 32.000 - std 22.627)") != std::string::npos;
+  })) << "no progress line names the floored threshold";
+
+  // The statistics survive the model file.
+  const Model reloaded = parseModel(serializeModel(model), "memory");
+  EXPECT_EQ(reloaded.categories.at(0).thresholds, c.thresholds);
+  EXPECT_EQ(reloaded.categories.at(0).threshold_stats.at(cw).mean, c.threshold_stats.at(cw).mean);
+  EXPECT_EQ(reloaded.categories.at(0).threshold_stats.at(cw).std, c.threshold_stats.at(cw).std);
+
+  // A floor of 0 is the seed's rule unchanged; outside [0, 1] is refused.
+  params.threshold_floor = 0;
+  EXPECT_NEAR(trainFromScans(handMadeScans("stool", 3, 2), {"stool"}, params).categories[0].thresholds.at(cw),
+              mean - std, 1e-3f);
+  params.threshold_floor = 1.5f;
+  EXPECT_THROW(trainFromScans(handMadeScans("stool", 3, 2), {"stool"}, params), Error);
 }
 
 TEST(TrainFromScans, NeedsTwoModelsPerCategory) {
