@@ -11,6 +11,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <limits>
 #include <mutex>
 #include <thread>
 
@@ -163,20 +164,30 @@ FileScene sceneFromFile(const std::string& path, const ism::v1::CameraIntrinsics
   out.scene = ism::loadCloudFile(path);
   const ism::Scene& scene = out.scene;
   auto* cloud = out.message.mutable_cloud();
-  std::string* xyz = cloud->mutable_xyz();
-  xyz->resize(scene.cloud->size() * 12);
+  // An organized cloud goes out as its whole image grid, NaN where there is no point: the
+  // server's front end finds keypoints on occluding contours only in an image.
+  const bool organized = scene.image_width > 0 && scene.image_height > 0;
+  const size_t slots = organized ? static_cast<size_t>(scene.image_width) * scene.image_height : scene.cloud->size();
+  if (organized) {
+    cloud->set_width(static_cast<uint32_t>(scene.image_width));
+    cloud->set_height(static_cast<uint32_t>(scene.image_height));
+  }
+  std::vector<float> xyz(slots * 3, std::numeric_limits<float>::quiet_NaN());
   std::string* rgb = cloud->mutable_rgb();
-  if (scene.has_color) rgb->resize(scene.cloud->size() * 3);
+  if (scene.has_color) rgb->assign(slots * 3, '\0');
   for (size_t i = 0; i < scene.cloud->size(); ++i) {
     const auto& p = (*scene.cloud)[i];
-    const float v[3] = {p.x, p.y, p.z};
-    std::memcpy(xyz->data() + i * 12, v, 12);
+    const size_t slot = organized ? static_cast<size_t>(scene.pixel_index[i]) : i;
+    xyz[slot * 3] = p.x;
+    xyz[slot * 3 + 1] = p.y;
+    xyz[slot * 3 + 2] = p.z;
     if (scene.has_color) {
-      (*rgb)[i * 3] = static_cast<char>(p.r);
-      (*rgb)[i * 3 + 1] = static_cast<char>(p.g);
-      (*rgb)[i * 3 + 2] = static_cast<char>(p.b);
+      (*rgb)[slot * 3] = static_cast<char>(p.r);
+      (*rgb)[slot * 3 + 1] = static_cast<char>(p.g);
+      (*rgb)[slot * 3 + 2] = static_cast<char>(p.b);
     }
   }
+  cloud->set_xyz(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
   auto* origin = out.message.mutable_sensor_origin();
   origin->set_x(scene.sensor_origin.x());
   origin->set_y(scene.sensor_origin.y());
