@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DISM_BUILD_TESTS=OFF >/dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DISM_BUILD_TESTS=OFF -DISM_BUILD_SERVICE=ON >/dev/null
 cmake --build build -j"$(nproc)" --target ism-server ism-client
 
 port=${ISM_DEMO_PORT:-50151}
@@ -14,7 +14,7 @@ build/server/ism-server --listen "127.0.0.1:${port}" --models models/default --m
 server=$!
 trap 'kill -TERM $server 2>/dev/null; wait $server 2>/dev/null || true; rm -f "$log"' EXIT
 
-client=build/client/cli/ism-client
+client=build/client/ism-client
 for _ in $(seq 1 100); do
   "$client" --server "127.0.0.1:${port}" health >/dev/null 2>&1 && break
   kill -0 $server 2>/dev/null || { cat "$log"; echo "ism-server exited"; exit 1; }
