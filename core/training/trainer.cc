@@ -18,8 +18,6 @@
 #include <omp.h>
 #endif
 
-#include <pcl/search/kdtree.h>
-
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
 #include "core/recognition/recognizer.h"
@@ -136,58 +134,6 @@ std::vector<std::string> splitTabs(const std::string& line) {
   while (std::getline(s, field, '\t')) fields.push_back(field);
   if (!line.empty() && line.back() == '\t') fields.emplace_back();
   return fields;
-}
-
-// A keypoint counts as the object's when a scan point of the object lies within this distance:
-// a voxel centroid at a leg's foot mixes leg and floor points, one on the open floor does not.
-constexpr float kOnObjectDistance = 0.02f;
-
-// The rows of `features` at `keep` (ascending).
-Features selectFeatures(const Features& features, const std::vector<int>& keep) {
-  Features out;
-  out.descriptors.resize(static_cast<Eigen::Index>(keep.size()), features.descriptors.cols());
-  for (size_t i = 0; i < keep.size(); ++i) {
-    const auto k = static_cast<size_t>(keep[i]);
-    out.positions.push_back(features.positions[k]);
-    out.lrfs.push_back(features.lrfs[k]);
-    out.descriptors.row(static_cast<Eigen::Index>(i)) = features.descriptors.row(keep[i]);
-  }
-  return out;
-}
-
-// One view of `object` on a floor, described as a whole (so that supports near the floor hold
-// floor points, as in scenes); only keypoints on the object are kept, so no floor point votes.
-Features describeOnFloor(const std::string& category, const Mesh& object, const Eigen::Isometry3f& view,
-                         const NoiseParams& noise, const TrainingParams& params, const std::string& source) {
-  const Eigen::AlignedBox3f bounds = object.bounds();
-  SyntheticSceneParams scene_params;
-  scene_params.floor_size = bounds.sizes().head<2>().maxCoeff() + 2 * params.floor_margin;
-  scene_params.camera_eye = view.translation();
-  scene_params.camera_target = bounds.center();  // viewRing looks at the centre: the same pose
-  scene_params.intrinsics = params.intrinsics;
-  scene_params.noise = noise;
-  SyntheticScene composed = composeScene({{category, object}}, scene_params);
-  composed.scene.source = source;
-  const Features all = extractFeatures(composed.scene, params.front_end, false).features;
-
-  Cloud::Ptr object_points(new Cloud);
-  for (size_t i = 0; i < composed.point_object.size(); ++i) {
-    if (composed.point_object[i] >= 0) object_points->push_back((*composed.scene.cloud)[i]);
-  }
-  if (object_points->empty()) return {};
-  pcl::search::KdTree<PointT> tree(/*sorted=*/false);
-  tree.setInputCloud(object_points);
-  std::vector<int> keep, index(1);
-  std::vector<float> squared_distance(1);
-  for (size_t k = 0; k < all.size(); ++k) {
-    PointT p;
-    p.getVector3fMap() = all.positions[k];
-    if (tree.nearestKSearch(p, 1, index, squared_distance) == 1 &&
-        squared_distance[0] <= kOnObjectDistance * kOnObjectDistance) {
-      keep.push_back(static_cast<int>(k));
-    }
-  }
-  return selectFeatures(all, keep);
 }
 
 }  // namespace
@@ -348,16 +294,14 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     const TrainingMesh& mesh = meshes[static_cast<size_t>(m)];
     NoiseParams noise = params.noise;
     noise.seed += static_cast<uint32_t>(j);  // independent noise per scan, reproducible
-    const Mesh& object = placed[static_cast<size_t>(m)];
-    const Eigen::Isometry3f& view = views[static_cast<size_t>(m)][static_cast<size_t>(v)];
+    const DepthImage depth = renderDepth({&placed[static_cast<size_t>(m)]}, views[static_cast<size_t>(m)][static_cast<size_t>(v)],
+                                         params.intrinsics, noise);
     const std::string source = mesh.path + " view " + std::to_string(v + 1);
     TrainingScan& scan = scans[static_cast<size_t>(j)];
     scan.category = mesh.category;
     scan.model_index = model_index[static_cast<size_t>(m)];
-    scan.object_center = object.bounds().center();
-    scan.features = params.floor ? describeOnFloor(mesh.category, object, view, noise, params, source)
-                                 : extractFeatures(depthImageToWorldScene(renderDepth({&object}, view, params.intrinsics, noise), source),
-                                                   params.front_end, false).features;
+    scan.object_center = placed[static_cast<size_t>(m)].bounds().center();
+    scan.features = extractFeatures(depthImageToWorldScene(depth, source), params.front_end, false).features;
     scan.keypoint_box = fitOrientedBox(scan.features.positions);
     if (params.progress) {
       std::lock_guard<std::mutex> lock(progress_mutex);
@@ -562,8 +506,7 @@ Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& param
   model.provenance.scans = static_cast<int>(scans.size());
   model.provenance.created = utcNow();
   model.provenance.code_version = codeVersion();
-  // The default changed over time, so a command line alone does not tell how the scans were made.
-  model.provenance.command = params.command + (params.floor ? " [scans on a floor]" : " [scans without a floor]");
+  model.provenance.command = params.command;
   if (params.progress) params.progress("training took " + fixed(secondsSince(start), 1) + " s");
   return model;
 }
