@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash deploy/install-deps.sh
-cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DISM_BUILD_TESTS=OFF -DISM_BUILD_SERVICE=ON >/dev/null
+cmake -S . -B build -G Ninja -DCMAKE_BUILD_TYPE=Release -DISM_BUILD_SERVICE=ON >/dev/null
 cmake --build build -j"$(nproc)" --target ism-server ism-client
 
 port=${ISM_DEMO_PORT:-50151}

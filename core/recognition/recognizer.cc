@@ -563,7 +563,8 @@ void recognizePlanned(const Model& model, const Plan& plan, const Features& feat
 
   {
     ScopedStage stage(&result.timings, "select");
-    std::stable_sort(all.begin(), all.end(), [](const Hypothesis& a, const Hypothesis& b) { return a.score > b.score; });
+    std::stable_sort(all.begin(), all.end(),
+                     [](const Hypothesis& a, const Hypothesis& b) { return a.relativeScore() > b.relativeScore(); });
     for (auto& h : all) {
       if (!options.return_keypoints) h.support_keypoints = {};
       auto& target = (h.passed_selection || !options.box_selection) ? result.hypotheses : result.rejected;

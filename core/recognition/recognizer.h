@@ -17,7 +17,7 @@ struct RecognitionOptions {
   std::vector<std::string> categories;  // empty = every category of the model
   // Overrides the model's leave-one-out threshold for the chosen strategy when set.
   std::optional<float> min_score;
-  int max_hypotheses = 0;               // 0 = no limit; best scores first
+  int max_hypotheses = 0;               // 0 = no limit; best first (Hypothesis::relativeScore)
   bool box_selection = true;            // false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)
@@ -28,6 +28,10 @@ struct Hypothesis {
   std::string category;
   float score = 0;       // summed vote weight around the centre
   float threshold = 0;   // the threshold the score was compared with
+  // How far above its category's threshold: what ranks hypotheses of different categories
+  // against each other, since raw scores are not comparable across categories (LW and AW
+  // scores scale with 1/|Occ|, which differs per category's vote table).
+  float relativeScore() const { return threshold > 0 ? score / threshold : score; }
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // weighted mean of the votes in the peak
   OrientedBox box;       // PCA box of the supporting keypoints
   int support = 0;       // keypoints that voted into the peak
