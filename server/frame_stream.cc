@@ -6,9 +6,11 @@
 
 namespace ism::server {
 
-FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context)
+FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context,
+                         std::unique_ptr<StreamSlot> slot)
     : service_(service),
       context_(context),
+      slot_(std::move(slot)),
       stream_id_(requestId("")),
       should_stop_(callStopper(context, &cancelled_)) {
   service_.metrics.streamOpened();
@@ -20,7 +22,12 @@ FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerCont
 void FrameStream::act(const Actions& actions) {
   if (actions.read) StartRead(&read_buffer_);
   if (actions.write != nullptr) StartWrite(actions.write);
-  if (actions.finish) Finish(final_status_);
+  if (actions.finish) {
+    // Given back before the status leaves: a client that saw its stream end may open the
+    // next one at once and must find the slot free.
+    slot_.reset();
+    Finish(final_status_);
+  }
 }
 
 void FrameStream::OnReadDone(bool ok) {

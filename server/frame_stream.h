@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "ism/v1/service.grpc.pb.h"
+#include "server/auth.h"
 #include "server/service_context.h"
 
 namespace ism::server {
@@ -25,7 +26,8 @@ class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest
   static constexpr size_t kMaxQueuedFrames = 4;
   static constexpr size_t kMaxPendingResults = 4;
 
-  FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context);
+  // `slot` (may be null) is the client's stream slot, given back when the stream is done.
+  FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context, std::unique_ptr<StreamSlot> slot);
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -61,6 +63,7 @@ class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest
 
   const ServiceContext& service_;
   grpc::CallbackServerContext* context_;
+  std::unique_ptr<StreamSlot> slot_;
   const std::string stream_id_;
   const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
   std::atomic<bool> cancelled_{false};

@@ -1,6 +1,7 @@
 // ism-server: the furniture recognition gRPC service. Every flag has an ISM_* environment
 // variable fallback (for containers). SIGTERM/SIGINT stop accepting calls, let the running ones
-// finish (up to --drain-seconds), and exit 0.
+// finish (up to --drain-seconds), and exit 0. Secrets come from files, never from flags, so
+// that they do not show in `ps`.
 #include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <grpcpp/grpcpp.h>
 #include <grpcpp/health_check_service_interface.h>
@@ -13,6 +14,7 @@
 #include <filesystem>
 #include <thread>
 
+#include "server/auth.h"
 #include "server/recognizer_service.h"
 
 namespace fs = std::filesystem;
@@ -48,6 +50,8 @@ int main(int argc, char** argv) {
   std::string log_level = "info";
   ism::server::InputLimits limits;
   double drain_seconds = 10;
+  std::string tls_cert, tls_key, tls_client_ca, token_file, admin_token_file;
+  size_t max_streams_per_client = 0;
   app.add_option("--listen", listen, "gRPC address")->envname("ISM_LISTEN")->capture_default_str();
   app.add_option("--models", model_dir, "directory whose *.ismm files are loaded (name = file stem)")
       ->envname("ISM_MODELS")
@@ -77,6 +81,31 @@ int main(int argc, char** argv) {
       ->envname("ISM_LOG_LEVEL")
       ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"}))
       ->capture_default_str();
+  auto* cert_option = app.add_option("--tls-cert", tls_cert, "PEM certificate chain: serve TLS instead of plain text")
+                          ->envname("ISM_TLS_CERT")
+                          ->check(CLI::ExistingFile);
+  auto* key_option = app.add_option("--tls-key", tls_key, "PEM private key of --tls-cert")
+                         ->envname("ISM_TLS_KEY")
+                         ->check(CLI::ExistingFile);
+  cert_option->needs(key_option);
+  key_option->needs(cert_option);
+  app.add_option("--tls-client-ca", tls_client_ca,
+                 "PEM CA certificates: require client certificates signed by them (mTLS)")
+      ->envname("ISM_TLS_CLIENT_CA")
+      ->check(CLI::ExistingFile)
+      ->needs(cert_option);
+  app.add_option("--token-file", token_file,
+                 "bearer tokens, one per line: every RPC but health and reflection then needs one")
+      ->envname("ISM_TOKEN_FILE")
+      ->check(CLI::ExistingFile);
+  app.add_option("--admin-token-file", admin_token_file,
+                 "bearer tokens that may also call LoadModel, UnloadModel and ReloadModels")
+      ->envname("ISM_ADMIN_TOKEN_FILE")
+      ->check(CLI::ExistingFile);
+  app.add_option("--max-streams-per-client", max_streams_per_client,
+                 "concurrent StreamFrames calls per client (its token, else its host); 0: no limit")
+      ->envname("ISM_MAX_STREAMS_PER_CLIENT")
+      ->capture_default_str();
   CLI11_PARSE(app, argc, argv);
 
   spdlog::set_default_logger(spdlog::stderr_color_mt("ism-server"));
@@ -96,13 +125,32 @@ int main(int argc, char** argv) {
     metrics.setLoadedModels(models.size());
     // Declared before the server so that it outlives every call the server finishes.
     ism::server::WorkerPool pool(threads);
-    ism::server::RecognizerService service({models, pool, metrics, limits});
+    ism::server::AccessParams access_params;
+    if (!token_file.empty()) access_params.tokens = ism::server::readTokenFile(token_file);
+    if (!admin_token_file.empty()) access_params.admin_tokens = ism::server::readTokenFile(admin_token_file);
+    access_params.max_streams_per_client = max_streams_per_client;
+    ism::server::AccessControl access(access_params);
+    const auto credentials = tls_cert.empty() ? grpc::InsecureServerCredentials()
+                                              : ism::server::tlsServerCredentials(tls_cert, tls_key, tls_client_ca);
+    if (!ism::server::isLoopbackAddress(listen)) {
+      if (tls_cert.empty()) {
+        spdlog::warn("{} is reachable from other machines without TLS: scenes{} cross the network readable by anyone",
+                     listen, access.authEnabled() ? " and tokens" : "");
+      }
+      if (!access.authEnabled()) {
+        spdlog::warn("{} is reachable from other machines without --token-file: anyone may call every RPC", listen);
+      }
+    }
+    if (access.authEnabled() && access_params.admin_tokens.empty()) {
+      spdlog::info("no --admin-token-file: LoadModel, UnloadModel and ReloadModels are refused");
+    }
+    ism::server::RecognizerService service({models, pool, metrics, limits}, access);
 
     grpc::EnableDefaultHealthCheckService(true);
     grpc::reflection::InitProtoReflectionServerBuilderPlugin();
     grpc::ServerBuilder builder;
     int port = 0;
-    builder.AddListeningPort(listen, grpc::InsecureServerCredentials(), &port);
+    builder.AddListeningPort(listen, credentials, &port);
     builder.SetMaxReceiveMessageSize(max_message_mb * 1024 * 1024);
     builder.SetMaxSendMessageSize(max_message_mb * 1024 * 1024);
     builder.RegisterService(&service);
@@ -111,8 +159,9 @@ int main(int argc, char** argv) {
       spdlog::critical("cannot listen on {}", listen);
       return 1;
     }
-    spdlog::info("listening on {} (port {}), {} worker threads, metrics {}", listen, port, threads,
-                 metrics_listen.empty() ? "off" : metrics_listen);
+    spdlog::info("listening on {} (port {}, {}{}, tokens {}), {} worker threads, metrics {}", listen, port,
+                 tls_cert.empty() ? "plain text" : "TLS", tls_client_ca.empty() ? "" : " with client certificates",
+                 access.authEnabled() ? "required" : "off", threads, metrics_listen.empty() ? "off" : metrics_listen);
 
     int signal_number = 0;
     sigwait(&stop_signals, &signal_number);

@@ -4,13 +4,15 @@
 #include <string>
 
 #include "ism/v1/service.grpc.pb.h"
+#include "server/auth.h"
 #include "server/service_context.h"
 
 namespace ism::server {
 
 class RecognizerService final : public v1::FurnitureRecognizer::CallbackService {
  public:
-  explicit RecognizerService(ServiceContext context) : context_(context) {}
+  // `access` decides who may call; it must outlive every call (streams hold slots in it).
+  RecognizerService(ServiceContext context, AccessControl& access) : context_(context), access_(access) {}
 
   grpc::ServerUnaryReactor* Recognize(grpc::CallbackServerContext* context, const v1::RecognizeRequest* request,
                                       v1::RecognizeResponse* response) override;
@@ -29,12 +31,16 @@ class RecognizerService final : public v1::FurnitureRecognizer::CallbackService 
                                          v1::ReloadModelsResponse* response) override;
 
  private:
-  // Runs `work(request_id)` on the pool, maps what it throws, records metrics, logs failures.
+  // Checks the caller's token, then runs `work(request_id)` on the pool, maps what it throws,
+  // records metrics, logs failures.
   template <typename Work>
-  grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* rpc,
+  grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* rpc, Access needed,
                                   const std::string& given_request_id, Work work);
+  void finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor, const char* rpc,
+              const std::string& request_id, const grpc::Status& status, double seconds);
 
   ServiceContext context_;
+  AccessControl& access_;
 };
 
 }  // namespace ism::server

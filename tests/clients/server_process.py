@@ -15,7 +15,7 @@ import urllib.request
 
 SERVER_BIN = os.environ.get("ISM_SERVER_BIN", "")
 MODEL_DIR = os.environ.get("ISM_TEST_MODEL_DIR", "")
-_LISTENING = re.compile(r"listening on \S+ \(port (\d+)\)")
+_LISTENING = re.compile(r"listening on \S+ \(port (\d+)[,)]")
 
 
 def free_port() -> int:

@@ -127,7 +127,9 @@ std::string tinyModelDirectory() {
   return directory.string();
 }
 
-ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags) {
+ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags,
+                             std::shared_ptr<grpc::ChannelCredentials> credentials)
+    : credentials_(credentials ? std::move(credentials) : grpc::InsecureChannelCredentials()) {
   const std::string models = tinyModelDirectory();
   port_ = freePort();
   metrics_port_ = freePort();
@@ -153,10 +155,7 @@ ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags) {
   while (std::chrono::steady_clock::now() < give_up) {
     // A fresh channel per attempt: one that first tried before the server listened keeps
     // failing its handshakes for seconds (gRPC 1.51).
-    grpc::ChannelArguments args;
-    args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
-    auto health = grpc::health::v1::Health::NewStub(
-        grpc::CreateCustomChannel(address(), grpc::InsecureChannelCredentials(), args));
+    auto health = grpc::health::v1::Health::NewStub(channel());
     grpc::ClientContext context;
     context.set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(500));
     grpc::health::v1::HealthCheckResponse response;
@@ -181,10 +180,12 @@ ServerProcess::~ServerProcess() {
   }
 }
 
-std::shared_ptr<grpc::Channel> ServerProcess::channel() const {
+std::shared_ptr<grpc::Channel> ServerProcess::channel(
+    const std::shared_ptr<grpc::ChannelCredentials>& credentials) const {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
-  return grpc::CreateCustomChannel(address(), grpc::InsecureChannelCredentials(), args);
+  args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
+  return grpc::CreateCustomChannel(address(), credentials, args);
 }
 
 int ServerProcess::terminate(std::chrono::seconds timeout) {

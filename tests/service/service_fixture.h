@@ -21,15 +21,19 @@ std::string tinyModelDirectory();
 // A running ism-server. The destructor kills it (SIGKILL) if the test did not stop it.
 class ServerProcess {
  public:
-  // Extra flags are appended (e.g. "--max-points", "5000"). Waits for health SERVING.
-  explicit ServerProcess(const std::vector<std::string>& extra_flags = {});
+  // Extra flags are appended (e.g. "--max-points", "5000"). Waits for health SERVING, asked over
+  // `credentials` (plain text when null; TLS servers need SslCredentials).
+  explicit ServerProcess(const std::vector<std::string>& extra_flags = {},
+                         std::shared_ptr<grpc::ChannelCredentials> credentials = nullptr);
   ~ServerProcess();
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
 
   std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
   int metricsPort() const { return metrics_port_; }
-  std::shared_ptr<grpc::Channel> channel() const;
+  std::shared_ptr<grpc::Channel> channel() const { return channel(credentials_); }
+  // A channel with its own subchannels: one test's failed handshake never leaks into another's.
+  std::shared_ptr<grpc::Channel> channel(const std::shared_ptr<grpc::ChannelCredentials>& credentials) const;
   // SIGTERM, then the exit code (-1 when it did not exit within `timeout` or died of a signal).
   int terminate(std::chrono::seconds timeout = std::chrono::seconds(30));
   // The body of GET /metrics.
@@ -39,6 +43,7 @@ class ServerProcess {
   pid_t pid_ = -1;
   int port_ = 0;
   int metrics_port_ = 0;
+  std::shared_ptr<grpc::ChannelCredentials> credentials_;
 };
 
 // 160x120 frames of procedural furniture on a floor; `frame` moves the camera a little so a

@@ -12,7 +12,7 @@ function startServer({ bin = process.env.ISM_SERVER_BIN, modelDir = process.env.
     const timer = setTimeout(() => { child.kill('SIGKILL'); reject(new Error(`ism-server did not start:\n${log}`)); }, timeoutMs);
     const onData = (chunk) => {
       log += chunk;
-      const match = /listening on \S+ \(port (\d+)\)/.exec(log);
+      const match = /listening on \S+ \(port (\d+)[,)]/.exec(log);
       if (match && timer) {
         clearTimeout(timer);
         resolve({
