@@ -1,0 +1,182 @@
+#include "client/cli/common.h"
+
+#include <absl/status/status.h>
+
+#include <CLI/CLI.hpp>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+
+#include "core/io/cloud_io.h"
+#include "core/io/depth_png.h"
+
+namespace ism::client {
+
+void Connection::add(CLI::App* app) {
+  app->add_option("--server", server, "host:port of the server")->envname("ISM_SERVER")->capture_default_str();
+  app->add_option("--deadline-ms", deadline_ms, "give up after this long (0: never)")->check(CLI::NonNegativeNumber);
+  app->add_flag("--json", json, "print JSON (one object per line) instead of tables");
+  app->add_flag("--tls", tls, "connect with TLS, trusting the system's CAs (implied by the --tls-* options)");
+  app->add_option("--tls-ca", tls_ca, "PEM CA certificates to trust instead of the system's")
+      ->envname("ISM_TLS_CA")
+      ->check(CLI::ExistingFile);
+  auto* cert = app->add_option("--tls-cert", tls_cert, "PEM client certificate, for servers that require one (mTLS)")
+                   ->check(CLI::ExistingFile);
+  auto* key = app->add_option("--tls-key", tls_key, "PEM private key of --tls-cert")->check(CLI::ExistingFile);
+  cert->needs(key);
+  key->needs(cert);
+  app->add_option("--tls-server-name", tls_server_name,
+                  "name to check the server certificate against (default: the host of --server)");
+  app->add_option("--token", token, "bearer token sent as 'authorization: Bearer TOKEN' (prefer ISM_TOKEN: "
+                                    "arguments show in ps)")
+      ->envname("ISM_TOKEN");
+}
+
+std::shared_ptr<grpc::Channel> Connection::channel() const {
+  grpc::ChannelArguments args;
+  args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
+  std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
+  if (tls || !tls_ca.empty() || !tls_cert.empty() || !tls_server_name.empty()) {
+    grpc::SslCredentialsOptions options;
+    if (!tls_ca.empty()) options.pem_root_certs = readFileBytes(tls_ca);
+    if (!tls_cert.empty()) {
+      options.pem_cert_chain = readFileBytes(tls_cert);
+      options.pem_private_key = readFileBytes(tls_key);
+    }
+    if (!tls_server_name.empty()) args.SetSslTargetNameOverride(tls_server_name);
+    credentials = grpc::SslCredentials(options);
+  }
+  return grpc::CreateCustomChannel(server, credentials, args);
+}
+
+// Per-call metadata rather than call credentials: gRPC sends those only over TLS, and a
+// token over plain text is legitimate behind a TLS-terminating proxy or on loopback.
+void Connection::prepare(grpc::ClientContext* context) const {
+  if (deadline_ms > 0) context->set_deadline(std::chrono::system_clock::now() + std::chrono::milliseconds(deadline_ms));
+  if (!token.empty()) context->AddMetadata("authorization", "Bearer " + token);
+}
+
+// grpc::StatusCode and absl::StatusCode share their numbering by design.
+std::string statusName(grpc::StatusCode code) {
+  return absl::StatusCodeToString(static_cast<absl::StatusCode>(code));
+}
+
+void RecognitionFlags::add(CLI::App* app) {
+  intrinsics.set_fx(525.0f);
+  intrinsics.set_fy(525.0f);
+  intrinsics.set_cx(319.5f);
+  intrinsics.set_cy(239.5f);
+  intrinsics.set_depth_scale(1000.0f);
+  app->add_option_function<std::string>("--model", [this](const std::string& v) { options.set_model(v); },
+                                        "model name (default: the only or 'default' one)");
+  app->add_option("--category", categories, "categories to look for (repeatable; default: all)");
+  app->add_option("--min-score", min_score, "score threshold instead of the model's");
+  app->add_option_function<unsigned>("--max-hypotheses", [this](unsigned v) { options.set_max_hypotheses(v); },
+                                     "at most this many hypotheses, best first");
+  app->add_option("--codebook", codebook, "global or separated")
+      ->check(CLI::IsMember({"global", "separated"}))
+      ->capture_default_str();
+  app->add_option("--activation", activation, "knn or cutoff")
+      ->check(CLI::IsMember({"knn", "cutoff"}))
+      ->capture_default_str();
+  app->add_option_function<int>("--k", [this](int v) { options.mutable_strategy()->set_k(v); },
+                                "kNN activation: codewords per descriptor (default: the model's)")
+      ->check(CLI::PositiveNumber);
+  app->add_option_function<float>("--cutoff", [this](float v) { options.mutable_strategy()->set_cutoff(v); },
+                                  "cutoff activation: descriptor distance (default: the model's)")
+      ->check(CLI::PositiveNumber);
+  app->add_option("--weighting", weighting, "vote weights: cw, lw or aw")
+      ->check(CLI::IsMember({"cw", "lw", "aw"}))
+      ->capture_default_str();
+  app->add_flag_function("--keypoints", [this](int64_t) { options.set_return_keypoints(true); },
+                         "return each hypothesis' supporting keypoints");
+  app->add_flag("--no-box-selection", no_box_selection, "also return hypotheses whose box fails the test");
+  auto intrinsic = [&](const char* name, void (v1::CameraIntrinsics::*set)(float), const char* help) {
+    app->add_option_function<float>(name, [this, set](float v) { (intrinsics.*set)(v); }, help);
+  };
+  intrinsic("--fx", &v1::CameraIntrinsics::set_fx, "depth PNG focal length x (px, default 525)");
+  intrinsic("--fy", &v1::CameraIntrinsics::set_fy, "depth PNG focal length y (px, default 525)");
+  intrinsic("--cx", &v1::CameraIntrinsics::set_cx, "depth PNG principal point x (px, default 319.5)");
+  intrinsic("--cy", &v1::CameraIntrinsics::set_cy, "depth PNG principal point y (px, default 239.5)");
+  intrinsic("--depth-scale", &v1::CameraIntrinsics::set_depth_scale,
+            "depth PNG units per metre (default 1000; 5000 for TUM RGB-D)");
+}
+
+v1::RecognitionOptions RecognitionFlags::build() const {
+  v1::RecognitionOptions out = options;
+  for (const auto& c : categories) out.add_categories(c);
+  if (!std::isnan(min_score)) out.set_min_score(min_score);
+  if (no_box_selection) out.set_box_selection(false);
+  auto* s = out.mutable_strategy();
+  s->set_codebook(codebook == "separated" ? v1::CODEBOOK_TYPE_SEPARATED : v1::CODEBOOK_TYPE_GLOBAL);
+  s->set_activation(activation == "cutoff" ? v1::ACTIVATION_STRATEGY_CUTOFF : v1::ACTIVATION_STRATEGY_KNN);
+  s->set_weighting(weighting == "cw"   ? v1::VOTE_WEIGHTING_CATEGORIZATION
+                   : weighting == "aw" ? v1::VOTE_WEIGHTING_ACTIVATION
+                                       : v1::VOTE_WEIGHTING_LOCALIZATION);
+  return out;
+}
+
+// PCD/PLY through core's loaders (NaNs dropped, sensor pose kept); PNG sent as it is and
+// decoded here only for a picture.
+FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& intrinsics, bool decode_png) {
+  FileScene out;
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (auto& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".png") {
+    auto* depth = out.message.mutable_depth();
+    depth->set_encoding(v1::DEPTH_ENCODING_PNG);
+    depth->set_data(readFileBytes(path));
+    *depth->mutable_intrinsics() = intrinsics;
+    if (decode_png) {
+      out.scene = decodeDepthPng(depth->data(), {intrinsics.fx(), intrinsics.fy(), intrinsics.cx(), intrinsics.cy(),
+                                                 intrinsics.depth_scale()}, path);
+      out.camera.width = out.scene.image_width;
+      out.camera.height = out.scene.image_height;
+      out.camera.fx = intrinsics.fx();
+      out.camera.fy = intrinsics.fy();
+      out.camera.cx = intrinsics.cx();
+      out.camera.cy = intrinsics.cy();
+    }
+    return out;
+  }
+  out.scene = loadCloudFile(path);
+  const Scene& scene = out.scene;
+  auto* cloud = out.message.mutable_cloud();
+  // An organized cloud goes out as its whole image grid, NaN where there is no point: the
+  // server's front end finds keypoints on occluding contours only in an image.
+  const bool organized = scene.image_width > 0 && scene.image_height > 0;
+  const size_t slots = organized ? static_cast<size_t>(scene.image_width) * scene.image_height : scene.cloud->size();
+  if (organized) {
+    cloud->set_width(static_cast<uint32_t>(scene.image_width));
+    cloud->set_height(static_cast<uint32_t>(scene.image_height));
+  }
+  std::vector<float> xyz(slots * 3, std::numeric_limits<float>::quiet_NaN());
+  std::string* rgb = cloud->mutable_rgb();
+  if (scene.has_color) rgb->assign(slots * 3, '\0');
+  for (size_t i = 0; i < scene.cloud->size(); ++i) {
+    const auto& p = (*scene.cloud)[i];
+    const size_t slot = organized ? static_cast<size_t>(scene.pixel_index[i]) : i;
+    xyz[slot * 3] = p.x;
+    xyz[slot * 3 + 1] = p.y;
+    xyz[slot * 3 + 2] = p.z;
+    if (scene.has_color) {
+      (*rgb)[slot * 3] = static_cast<char>(p.r);
+      (*rgb)[slot * 3 + 1] = static_cast<char>(p.g);
+      (*rgb)[slot * 3 + 2] = static_cast<char>(p.b);
+    }
+  }
+  cloud->set_xyz(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
+  auto* origin = out.message.mutable_sensor_origin();
+  origin->set_x(scene.sensor_origin.x());
+  origin->set_y(scene.sensor_origin.y());
+  origin->set_z(scene.sensor_origin.z());
+  auto* q = out.message.mutable_sensor_orientation();
+  q->set_w(scene.sensor_orientation.w());
+  q->set_x(scene.sensor_orientation.x());
+  q->set_y(scene.sensor_orientation.y());
+  q->set_z(scene.sensor_orientation.z());
+  return out;
+}
+
+}  // namespace ism::client

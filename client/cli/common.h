@@ -1,0 +1,62 @@
+#pragma once
+// What the ism-client subcommands share: exit codes, connection flags, recognition flags and
+// scenes read from files, so that `recognize`, `stream` and `bench` send the same requests.
+#include <grpcpp/grpcpp.h>
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/common/types.h"
+#include "core/report/report.h"
+#include "ism/v1/service.pb.h"
+
+namespace CLI {
+class App;
+}
+
+namespace ism::client {
+
+constexpr int kLocalFailure = 1;
+constexpr int kUsageError = 2;
+constexpr int kStatusBase = 10;  // + the gRPC status code
+
+struct Connection {
+  std::string server = "localhost:50051";
+  int deadline_ms = 0;
+  bool json = false;
+  bool tls = false;
+  std::string tls_ca, tls_cert, tls_key, tls_server_name;
+  std::string token;
+
+  void add(CLI::App* app);
+  std::shared_ptr<grpc::Channel> channel() const;
+  void prepare(grpc::ClientContext* context) const;
+};
+
+std::string statusName(grpc::StatusCode code);  // "UNAVAILABLE"
+
+// What `recognize`, `stream` and `bench` send.
+struct RecognitionFlags {
+  v1::RecognitionOptions options;
+  std::vector<std::string> categories;
+  float min_score = NAN;
+  std::string codebook = "global", activation = "knn", weighting = "lw";
+  bool no_box_selection = false;
+  v1::CameraIntrinsics intrinsics;
+
+  void add(CLI::App* app);
+  v1::RecognitionOptions build() const;
+};
+
+// A file as the wire carries it, plus the decoded scene for --picture.
+struct FileScene {
+  v1::Scene message;
+  Scene scene;
+  PictureParams camera;  // the sensor the picture is drawn from
+};
+
+FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& intrinsics, bool decode_png);
+
+}  // namespace ism::client
