@@ -186,6 +186,19 @@ TEST_F(IoTest, UnreadableFilesNameTheFile) {
   expectError([&] { loadCloudFile(path("dir.pcd")); }, ErrorCode::kIo, path("dir.pcd"));
 }
 
+// Inputs tests/fuzz found crashing the readers (an escaping std::out_of_range from PCL, a read
+// past the point data, PCL's assert on incomplete PLY colour): each is now a named error.
+TEST_F(IoTest, FuzzFindingsAreRefusedWithAnError) {
+  writeFileBytes(path("only_data.pcd"), "DATA");
+  expectError([&] { loadCloudFile(path("only_data.pcd")); }, ErrorCode::kInvalidInput, path("only_data.pcd"));
+  writeFileBytes(path("size_type.pcd"), "VERSION .7\nFIELDS x y z\nSIZE 8 40 0\nPOINTS 2\nDATA ascii\n"
+                                        "0.0 0.0 1.0\n0.1 0.0 1.05\n");
+  expectError([&] { loadCloudFile(path("size_type.pcd")); }, ErrorCode::kInvalidInput, path("size_type.pcd"));
+  writeFileBytes(path("blue.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                                   "property float z\nproperty uchar blue\nend_header\n1 2 3 4\n");
+  expectError([&] { loadCloudFile(path("blue.ply")); }, ErrorCode::kInvalidInput, "red, green and blue");
+}
+
 TEST_F(IoTest, CloudWithoutFiniteOrCoordinateFieldsIsRejected) {
   writeFileBytes(path("nan.ply"),
                  "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"

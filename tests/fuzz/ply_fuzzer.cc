@@ -1,0 +1,6 @@
+// PLY file bytes (ASCII and binary, any element/property layout) -> ism::loadCloudFile.
+#include "tests/fuzz/fuzz_common.h"
+
+extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
+  return ism::fuzz::loadCloudBytes(data, size, ".ply");
+}
