@@ -15,6 +15,7 @@
 #include "ism/v1/model.pb.h"
 #include "core/scanner/scanner.h"
 #include "tests/common/synthetic_furniture.h"
+#include "tests/common/expect_error.h"
 
 namespace ism {
 namespace {
@@ -60,17 +61,7 @@ void expectUnitDescriptorsAndRotationFrames(const Features& features) {
   }
 }
 
-// Expects `call` to throw ism::Error with `code` and a message containing `needle`.
-template <class Call>
-void expectError(Call call, ErrorCode code, const std::string& needle) {
-  try {
-    call();
-    ADD_FAILURE() << "no error thrown; expected one mentioning '" << needle << "'";
-  } catch (const Error& e) {
-    EXPECT_EQ(e.code(), code) << e.what();
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
-}
+using ism::testing::expectError;
 
 TEST(Downsample, KnownGridGivesVoxelCentroids) {
   // 8 points per axis at 2.5 mm spacing, offset by 1.25 mm: 4 per axis fall in each 1 cm voxel

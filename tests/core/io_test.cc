@@ -10,6 +10,7 @@
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
+#include "tests/common/expect_error.h"
 
 namespace ism {
 namespace {
@@ -29,17 +30,7 @@ class IoTest : public ::testing::Test {
   fs::path dir_;
 };
 
-// Expects `call` to throw ism::Error with `code` and a message containing `needle`.
-template <class Call>
-void expectError(Call call, ErrorCode code, const std::string& needle) {
-  try {
-    call();
-    ADD_FAILURE() << "no error thrown; expected one mentioning '" << needle << "'";
-  } catch (const Error& e) {
-    EXPECT_EQ(e.code(), code) << e.what();
-    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-  }
-}
+using ism::testing::expectError;
 
 PointT colored(float x, float y, float z, uint8_t r, uint8_t g, uint8_t b) {
   PointT p;
