@@ -8,6 +8,9 @@
 #include <pcl/filters/voxel_grid.h>
 #include <pcl/search/kdtree.h>
 #include <pcl/surface/mls.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include <algorithm>
 #include <cmath>
@@ -114,6 +117,17 @@ void requireAtLeast(int value, int minimum, const char* name) {
   }
 }
 
+// PCL's OpenMP estimators take a thread count where 0 means every core, ignoring OMP_NUM_THREADS
+// and omp_set_num_threads(). Passing OpenMP's own setting lets a caller (a benchmark on one
+// core, a server worker sharing the machine with others) decide.
+unsigned int threadCount() {
+#ifdef _OPENMP
+  return static_cast<unsigned int>(std::max(1, omp_get_max_threads()));
+#else
+  return 1;
+#endif
+}
+
 bool isFiniteFrame(const pcl::ReferenceFrame& frame) {
   for (float v : frame.rf) {
     if (!std::isfinite(v)) return false;
@@ -151,7 +165,7 @@ XyzCloud::Ptr smooth(const XyzCloud& cloud, const SmoothingParams& params) {
   mls.setSearchRadius(params.radius);
   mls.setPolynomialOrder(params.polynomial_order);
   mls.setComputeNormals(false);  // normals are estimated afterwards at their own radius
-  mls.setNumberOfThreads(0);     // 0 = all cores
+  mls.setNumberOfThreads(threadCount());
   mls.process(*out);
   // A fit can degenerate to NaN on near-collinear neighbourhoods; such points carry no surface.
   out->erase(std::remove_if(out->begin(), out->end(), [](const pcl::PointXYZ& p) { return !pcl::isFinite(p); }),
@@ -169,7 +183,7 @@ Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params, 
   estimator.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>(false)));
   estimator.setRadiusSearch(params.radius);
   estimator.setViewPoint(viewpoint.x(), viewpoint.y(), viewpoint.z());
-  estimator.setNumberOfThreads(0);
+  estimator.setNumberOfThreads(threadCount());
   pcl::PointCloud<pcl::Normal> normals;
   estimator.compute(normals);
   surface->reserve(cloud.size());
@@ -373,7 +387,7 @@ Features describe(const Surface& surface, const std::vector<int>& keypoints, con
   lrf_estimator.setSearchSurface(view);
   lrf_estimator.setSearchMethod(tree);
   lrf_estimator.setRadiusSearch(params.radius);
-  lrf_estimator.setNumberOfThreads(0);
+  lrf_estimator.setNumberOfThreads(threadCount());
   pcl::PointCloud<pcl::ReferenceFrame> all_frames;
   lrf_estimator.compute(all_frames);
 
@@ -396,7 +410,7 @@ Features describe(const Surface& surface, const std::vector<int>& keypoints, con
   shot.setInputReferenceFrames(frames);
   shot.setSearchMethod(tree);
   shot.setRadiusSearch(params.radius);
-  shot.setNumberOfThreads(0);
+  shot.setNumberOfThreads(threadCount());
   pcl::PointCloud<pcl::SHOT352> descriptors;
   shot.compute(descriptors);
 
