@@ -2,22 +2,22 @@
 
 #include <pcl/common/common.h>
 #include <pcl/features/boundary.h>
-#include <pcl/features/normal_3d_omp.h>
+#include <pcl/features/normal_3d.h>
 #include <pcl/features/shot_lrf_omp.h>
 #include <pcl/features/shot_omp.h>
 #include <pcl/filters/voxel_grid.h>
-#include <pcl/search/kdtree.h>
-#include <pcl/surface/mls.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
 
+#include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <unordered_set>
 
 #include "core/common/error.h"
+#include "core/frontend/neighbour_grid.h"
 
 namespace ism {
 namespace {
@@ -86,13 +86,6 @@ void voxelCentroids(const Cloud::ConstPtr& cloud, const pcl::IndicesPtr& indices
   }
 }
 
-// Counts at most `enough` neighbours: the early exit keeps the check cheap at large radii.
-bool hasEnoughNeighbours(const pcl::search::KdTree<pcl::PointNormal>& tree, int index, float radius, int enough) {
-  pcl::Indices neighbours;
-  std::vector<float> distances;
-  return tree.radiusSearch(index, radius, neighbours, distances, static_cast<unsigned int>(enough)) >= enough;
-}
-
 // A cell of the grid of cubes of edge 1 / inverse_size with a corner at the origin.
 struct Cell {
   int64_t x, y, z;
@@ -128,6 +121,67 @@ unsigned int threadCount() {
 #endif
 }
 
+// A polynomial of higher order than this over a 2 cm neighbourhood of ~12 voxel centroids fits
+// noise; the bound also keeps the normal equations in a fixed-size matrix.
+constexpr int kMaxPolynomialOrder = 4;
+
+// pcl::MovingLeastSquares' projection of point i (order >= 2, simple projection, no upsampling),
+// computed from the neighbours the grid found: the point goes onto the plane through its
+// neighbours' centroid, then along the plane's normal onto the weighted polynomial fit
+// w(u, v) at its foot, with Gaussian weights exp(-d^2 / r^2) of the distance to that foot.
+// Orders 0 and 1, and neighbourhoods with fewer points than coefficients, stop at the plane.
+Eigen::Vector3d projectMls(const XyzCloud& cloud, int i, const std::vector<int>& neighbours,
+                           const SmoothingParams& params) {
+  const Eigen::Vector3d query = cloud[static_cast<size_t>(i)].getVector3fMap().cast<double>();
+  Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+  for (int n : neighbours) centroid += cloud[static_cast<size_t>(n)].getVector3fMap().cast<double>();
+  centroid /= static_cast<double>(neighbours.size());
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  for (int n : neighbours) {
+    const Eigen::Vector3d d = cloud[static_cast<size_t>(n)].getVector3fMap().cast<double>() - centroid;
+    covariance.noalias() += d * d.transpose();
+  }
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
+  eigen.computeDirect(covariance);
+  const Eigen::Vector3d normal = eigen.eigenvectors().col(0);  // smallest eigenvalue first
+  if (!normal.allFinite()) return query;
+  const Eigen::Vector3d foot = query - (query - centroid).dot(normal) * normal;
+  const int order = params.polynomial_order;
+  const int coefficients = (order + 1) * (order + 2) / 2;
+  if (order < 2 || static_cast<int>(neighbours.size()) < coefficients) return foot;
+
+  const Eigen::Vector3d v_axis = normal.unitOrthogonal();
+  const Eigen::Vector3d u_axis = normal.cross(v_axis);
+  constexpr int kMaxCoefficients = (kMaxPolynomialOrder + 1) * (kMaxPolynomialOrder + 2) / 2;
+  using Terms = Eigen::Matrix<double, Eigen::Dynamic, 1, 0, kMaxCoefficients, 1>;
+  using Normal = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, 0, kMaxCoefficients, kMaxCoefficients>;
+  Normal lhs = Normal::Zero(coefficients, coefficients);
+  Terms rhs = Terms::Zero(coefficients), terms(coefficients);
+  const double inverse_squared_radius = 1.0 / (static_cast<double>(params.radius) * params.radius);
+  for (int n : neighbours) {
+    const Eigen::Vector3d d = cloud[static_cast<size_t>(n)].getVector3fMap().cast<double>() - foot;
+    const double weight = std::exp(-d.squaredNorm() * inverse_squared_radius);
+    const double u = d.dot(u_axis), v = d.dot(v_axis), w = d.dot(normal);
+    // Terms in PCL's order: u^a v^b for a = 0..order, b = 0..order-a.
+    int j = 0;
+    double u_power = 1.0;
+    for (int a = 0; a <= order; ++a) {
+      double v_power = 1.0;
+      for (int b = 0; b <= order - a; ++b) {
+        terms[j++] = u_power * v_power;
+        v_power *= v;
+      }
+      u_power *= u;
+    }
+    lhs.noalias() += weight * terms * terms.transpose();
+    rhs.noalias() += weight * w * terms;
+  }
+  const Terms c = lhs.llt().solve(rhs);
+  // A degenerate fit (collinear neighbours) leaves the point on its plane, as PCL does.
+  if (!std::isfinite(c[0])) return foot;
+  return foot + c[0] * normal;
+}
+
 bool isFiniteFrame(const pcl::ReferenceFrame& frame) {
   for (float v : frame.rf) {
     if (!std::isfinite(v)) return false;
@@ -152,24 +206,31 @@ XyzCloud::Ptr downsample(const Cloud& cloud, const DownsampleParams& params) {
 
 XyzCloud::Ptr smooth(const XyzCloud& cloud, const SmoothingParams& params) {
   requirePositive(params.radius, "smoothing.radius");
-  if (params.polynomial_order < 0) {
+  if (params.polynomial_order < 0 || params.polynomial_order > kMaxPolynomialOrder) {
     throw Error(ErrorCode::kInvalidInput,
                 "front end parameter smoothing.polynomial_order = " + std::to_string(params.polynomial_order) +
-                    " must be >= 0");
+                    " must be within 0.." + std::to_string(kMaxPolynomialOrder));
   }
   XyzCloud::Ptr out(new XyzCloud);
   if (cloud.empty()) return out;
-  pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointXYZ> mls;
-  mls.setInputCloud(borrow(cloud));
-  mls.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>));
-  mls.setSearchRadius(params.radius);
-  mls.setPolynomialOrder(params.polynomial_order);
-  mls.setComputeNormals(false);  // normals are estimated afterwards at their own radius
-  mls.setNumberOfThreads(threadCount());
-  mls.process(*out);
-  // A fit can degenerate to NaN on near-collinear neighbourhoods; such points carry no surface.
-  out->erase(std::remove_if(out->begin(), out->end(), [](const pcl::PointXYZ& p) { return !pcl::isFinite(p); }),
-             out->end());
+  const NeighbourGrid grid(cloud, params.radius);
+  std::vector<Eigen::Vector3f> smoothed(cloud.size());
+  std::vector<uint8_t> kept(cloud.size(), 0);
+  grid.forEachPoint(params.radius, [&](int i, const std::vector<int>& neighbours) {
+    // As pcl::MovingLeastSquares: fewer than 3 neighbours carry no surface and are dropped.
+    if (neighbours.size() < 3) return;
+    const Eigen::Vector3d projected = projectMls(cloud, i, neighbours, params);
+    if (!projected.allFinite()) return;
+    smoothed[static_cast<size_t>(i)] = projected.cast<float>();
+    kept[static_cast<size_t>(i)] = 1;
+  });
+  out->reserve(cloud.size());
+  for (size_t i = 0; i < cloud.size(); ++i) {
+    if (kept[i]) out->push_back(pcl::PointXYZ(smoothed[i].x(), smoothed[i].y(), smoothed[i].z()));
+  }
+  out->width = static_cast<uint32_t>(out->size());
+  out->height = 1;
+  out->is_dense = true;
   return out;
 }
 
@@ -177,28 +238,29 @@ Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params, 
   requirePositive(params.radius, "normals.radius");
   Surface::Ptr surface(new Surface);
   if (cloud.empty()) return surface;
-  pcl::NormalEstimationOMP<pcl::PointXYZ, pcl::Normal> estimator;
-  estimator.setInputCloud(borrow(cloud));
-  // PCA does not need neighbours sorted by distance; skipping the sort is measurably faster.
-  estimator.setSearchMethod(pcl::search::KdTree<pcl::PointXYZ>::Ptr(new pcl::search::KdTree<pcl::PointXYZ>(false)));
-  estimator.setRadiusSearch(params.radius);
-  estimator.setViewPoint(viewpoint.x(), viewpoint.y(), viewpoint.z());
-  estimator.setNumberOfThreads(threadCount());
-  pcl::PointCloud<pcl::Normal> normals;
-  estimator.compute(normals);
+  const NeighbourGrid grid(cloud, params.radius);
+  std::vector<pcl::PointNormal> points(cloud.size());
+  std::vector<uint8_t> defined(cloud.size(), 0);
+  grid.forEachPoint(params.radius, [&](int i, const std::vector<int>& neighbours) {
+    // The same PCA as pcl::NormalEstimation: undefined (NaN) below 3 neighbours.
+    Eigen::Vector4f plane;
+    float curvature = 0.0f;
+    if (!pcl::computePointNormal(cloud, neighbours, plane, curvature) || !plane.head<3>().allFinite()) return;
+    const pcl::PointXYZ& q = cloud[static_cast<size_t>(i)];
+    pcl::flipNormalTowardsViewpoint(q, viewpoint.x(), viewpoint.y(), viewpoint.z(), plane);
+    pcl::PointNormal& p = points[static_cast<size_t>(i)];
+    p.x = q.x;
+    p.y = q.y;
+    p.z = q.z;
+    p.normal_x = plane[0];
+    p.normal_y = plane[1];
+    p.normal_z = plane[2];
+    p.curvature = curvature;
+    defined[static_cast<size_t>(i)] = 1;
+  });
   surface->reserve(cloud.size());
   for (size_t i = 0; i < cloud.size(); ++i) {
-    const pcl::Normal& n = normals[i];
-    if (!std::isfinite(n.normal_x) || !std::isfinite(n.normal_y) || !std::isfinite(n.normal_z)) continue;
-    pcl::PointNormal p;
-    p.x = cloud[i].x;
-    p.y = cloud[i].y;
-    p.z = cloud[i].z;
-    p.normal_x = n.normal_x;
-    p.normal_y = n.normal_y;
-    p.normal_z = n.normal_z;
-    p.curvature = n.curvature;
-    surface->push_back(p);
+    if (defined[i]) surface->push_back(points[i]);
   }
   return surface;
 }
@@ -208,21 +270,15 @@ std::vector<int> detectBoundaryKeypoints(const Surface& surface, const KeypointP
   requirePositive(params.angle_threshold, "keypoints.angle_threshold");
   std::vector<int> keypoints;
   if (surface.empty()) return keypoints;
-  pcl::search::KdTree<pcl::PointNormal> tree(/*sorted=*/false);
-  tree.setInputCloud(borrow(surface));
   // pcl::BoundaryEstimation has no parallel variant; its per-point test is public and reads
   // only its arguments, so the same test runs here over all cores.
   pcl::BoundaryEstimation<pcl::PointNormal, pcl::PointNormal, pcl::Boundary> estimator;
   std::vector<uint8_t> is_boundary(surface.size(), 0);
-#pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(surface.size()); ++i) {
-    pcl::Indices neighbours;
-    std::vector<float> distances;
-    if (tree.radiusSearch(static_cast<pcl::index_t>(i), params.radius, neighbours, distances) == 0) continue;
+  NeighbourGrid(surface, params.radius).forEachPoint(params.radius, [&](int i, const std::vector<int>& neighbours) {
     Eigen::Vector4f u, v;
-    estimator.getCoordinateSystemOnPlane(surface[i], u, v);
-    is_boundary[i] = estimator.isBoundaryPoint(surface, static_cast<int>(i), neighbours, u, v, params.angle_threshold);
-  }
+    estimator.getCoordinateSystemOnPlane(surface[static_cast<size_t>(i)], u, v);
+    is_boundary[static_cast<size_t>(i)] = estimator.isBoundaryPoint(surface, i, neighbours, u, v, params.angle_threshold);
+  });
   for (size_t i = 0; i < surface.size(); ++i) {
     if (is_boundary[i]) keypoints.push_back(static_cast<int>(i));
   }
@@ -308,17 +364,11 @@ std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud
     }
   }
   if (surface.empty() || point_indices.empty()) return {};
-  pcl::search::KdTree<pcl::PointNormal> tree(/*sorted=*/false);
-  tree.setInputCloud(borrow(surface));
-  const float max_squared = max_distance * max_distance;
+  const NeighbourGrid grid(surface, max_distance);
   std::vector<int> nearest_of(point_indices.size(), -1);
 #pragma omp parallel for schedule(dynamic, 256)
   for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(point_indices.size()); ++i) {
-    pcl::PointNormal query;
-    query.getVector3fMap() = cloud[point_indices[i]].getVector3fMap();
-    pcl::Indices nearest(1);
-    std::vector<float> squared(1);
-    if (tree.nearestKSearch(query, 1, nearest, squared) == 1 && squared[0] <= max_squared) nearest_of[i] = nearest[0];
+    nearest_of[i] = grid.nearest(cloud[point_indices[i]].getVector3fMap(), max_distance);
   }
   std::vector<uint8_t> selected(surface.size(), 0);
   for (int n : nearest_of) {
@@ -367,17 +417,26 @@ Features describe(const Surface& surface, const std::vector<int>& keypoints, con
     }
   }
   const auto view = borrow(surface);
-  // One tree serves the neighbour count, the LRF and SHOT (PCL rebuilds a tree only when its
-  // input cloud changes).
-  pcl::search::KdTree<pcl::PointNormal>::Ptr tree(new pcl::search::KdTree<pcl::PointNormal>);
+  // One grid serves the neighbour count, the LRF and SHOT (PCL rebuilds a search structure only
+  // when its input cloud changes).
+  auto tree = std::make_shared<GridSearch<pcl::PointNormal>>(params.radius);
   tree->setInputCloud(view);
 
   // PCL's LRF needs 5 support points; fewer than min_neighbours gives an unstable frame whose
   // votes would be noise, so such keypoints are dropped before any work is spent on them.
   pcl::IndicesPtr supported(new pcl::Indices);
   supported->reserve(keypoints.size());
-  for (int k : keypoints) {
-    if (hasEnoughNeighbours(*tree, k, params.radius, std::max(params.min_neighbours, 1))) supported->push_back(k);
+  {
+    const int enough = std::max(params.min_neighbours, 1);
+    pcl::Indices neighbours;
+    std::vector<float> distances;
+    for (int k : keypoints) {
+      // Counting stops at `enough`, which keeps the check cheap at SHOT's large radius.
+      if (tree->radiusSearch(surface[static_cast<size_t>(k)], params.radius, neighbours, distances,
+                             static_cast<unsigned int>(enough)) >= enough) {
+        supported->push_back(k);
+      }
+    }
   }
   if (supported->empty()) return features;
 

@@ -1,0 +1,280 @@
+#include "core/frontend/neighbour_grid.h"
+
+#include <pcl/point_types.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+
+#include "core/common/error.h"
+
+namespace ism {
+namespace {
+
+// 21 bits per axis pack a cell into one 63-bit key. Cells beyond that (more than 2 million cells
+// from the cloud's minimum: 20 km at 1 cm) are clamped to the last one. Clamping never moves two
+// cells further apart, so no neighbour is lost; far-away points only share a cell and are then
+// rejected by the exact distance test.
+constexpr int64_t kMaxCell = (int64_t{1} << 21) - 1;
+// Keys use 63 bits, so this one is never a cell.
+constexpr uint64_t kEmptyKey = ~uint64_t{0};
+
+int64_t clampCell(double c) {
+  if (!(c > 0.0)) return 0;  // also NaN
+  if (c >= static_cast<double>(kMaxCell)) return kMaxCell;
+  return static_cast<int64_t>(c);
+}
+
+}  // namespace
+
+// Fibonacci hashing: the product's top bits depend on every bit of the key (x sits in the top
+// bits of the key, so the low bits of the product would ignore it).
+uint64_t NeighbourGrid::slotOf(uint64_t key) const { return (key * 0x9E3779B97F4A7C15ull) >> table_shift_; }
+
+uint64_t NeighbourGrid::keyOf(int64_t x, int64_t y, int64_t z) const {
+  return (static_cast<uint64_t>(x) << 42) | (static_cast<uint64_t>(y) << 21) | static_cast<uint64_t>(z);
+}
+
+Eigen::Array3i NeighbourGrid::cellOf(const Eigen::Vector3f& p) const {
+  const Eigen::Vector3d scaled = ((p - origin_).cast<double>()) * static_cast<double>(inverse_cell_);
+  return {static_cast<int>(clampCell(std::floor(scaled.x()))), static_cast<int>(clampCell(std::floor(scaled.y()))),
+          static_cast<int>(clampCell(std::floor(scaled.z())))};
+}
+
+void NeighbourGrid::build(std::vector<Eigen::Vector3f> points, float cell_size) {
+  if (!(std::isfinite(cell_size) && cell_size > 0.0f)) {
+    throw Error(ErrorCode::kInvalidInput,
+                "neighbour grid cell size " + std::to_string(cell_size) + " must be positive and finite");
+  }
+  if (points.size() > static_cast<size_t>(std::numeric_limits<int32_t>::max())) {
+    throw Error(ErrorCode::kInvalidInput, "neighbour grid: " + std::to_string(points.size()) + " points are too many");
+  }
+  cell_size_ = cell_size;
+  inverse_cell_ = 1.0f / cell_size;
+  origin_ = Eigen::Vector3f::Zero();
+  if (!points.empty()) {
+    origin_ = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+    for (const auto& p : points) {
+      if (p.allFinite()) origin_ = origin_.cwiseMin(p);
+    }
+    if (!origin_.allFinite() || origin_.x() == std::numeric_limits<float>::max()) origin_.setZero();
+  }
+
+  std::vector<std::pair<uint64_t, int>> keyed(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Array3i c = cellOf(points[i]);
+    keyed[i] = {keyOf(c.x(), c.y(), c.z()), static_cast<int>(i)};
+  }
+  std::sort(keyed.begin(), keyed.end());
+  sorted_.resize(points.size());
+  original_index_.resize(points.size());
+  cells_.clear();
+  for (size_t i = 0; i < keyed.size(); ++i) {
+    sorted_[i] = points[keyed[i].second];
+    original_index_[i] = keyed[i].second;
+    if (cells_.empty() || cells_.back().key != keyed[i].first) {
+      cells_.push_back({keyed[i].first, static_cast<uint32_t>(i), static_cast<uint32_t>(i)});
+    }
+    cells_.back().end = static_cast<uint32_t>(i + 1);
+  }
+  size_t table_size = 16;
+  table_shift_ = 60;
+  while (table_size < 2 * cells_.size()) {
+    table_size *= 2;
+    --table_shift_;
+  }
+  table_.assign(table_size, Range{kEmptyKey, 0, 0});
+  table_mask_ = table_size - 1;
+  for (const Range& cell : cells_) {
+    uint64_t slot = slotOf(cell.key);
+    while (table_[slot].key != kEmptyKey) slot = (slot + 1) & table_mask_;
+    table_[slot] = cell;
+  }
+}
+
+const NeighbourGrid::Range* NeighbourGrid::find(uint64_t key) const {
+  if (cells_.empty()) return nullptr;
+  // The table holds the ranges themselves, so a lookup touches one cache line.
+  for (uint64_t slot = slotOf(key);; slot = (slot + 1) & table_mask_) {
+    const Range& r = table_[slot];
+    if (r.key == key) return &r;
+    if (r.key == kEmptyKey) return nullptr;
+  }
+}
+
+int NeighbourGrid::span(float radius) const {
+  const double cells = std::ceil(static_cast<double>(radius) * inverse_cell_);
+  // A query anywhere in its cell reaches at most ceil(r / cell) cells to each side.
+  return static_cast<int>(std::clamp(cells, 1.0, static_cast<double>(kMaxCell)));
+}
+
+template <class Visit>
+void NeighbourGrid::forEachCellAround(const Eigen::Vector3f& query, float radius, Visit&& visit) const {
+  const int s = span(radius);
+  // A radius spanning more cells than are occupied is cheaper to answer by visiting them all
+  // (k-nearest searches far from the cloud grow their radius that far).
+  const double visited = std::pow(2.0 * s + 1.0, 3.0);
+  if (visited > static_cast<double>(cells_.size())) {
+    for (const Range& range : cells_) visit(range);
+    return;
+  }
+  const Eigen::Array3i c = cellOf(query);
+  for (int64_t x = std::max<int64_t>(0, c.x() - s); x <= std::min<int64_t>(kMaxCell, c.x() + s); ++x) {
+    for (int64_t y = std::max<int64_t>(0, c.y() - s); y <= std::min<int64_t>(kMaxCell, c.y() + s); ++y) {
+      for (int64_t z = std::max<int64_t>(0, c.z() - s); z <= std::min<int64_t>(kMaxCell, c.z() + s); ++z) {
+        if (const Range* range = find(keyOf(x, y, z))) visit(*range);
+      }
+    }
+  }
+}
+
+size_t NeighbourGrid::radiusSearch(const Eigen::Vector3f& query, float radius, std::vector<int>& indices,
+                                   std::vector<float>& squared_distances, size_t max_results) const {
+  indices.clear();
+  squared_distances.clear();
+  if (cells_.empty() || !(radius >= 0.0f) || !query.allFinite()) return 0;
+  const float r2 = radius * radius;
+  bool full = false;
+  forEachCellAround(query, radius, [&](const Range& range) {
+    for (uint32_t i = range.begin; i < range.end && !full; ++i) {
+      const float d2 = (sorted_[i] - query).squaredNorm();
+      if (d2 > r2) continue;
+      indices.push_back(original_index_[i]);
+      squared_distances.push_back(d2);
+      full = max_results > 0 && indices.size() >= max_results;
+    }
+  });
+  return indices.size();
+}
+
+int NeighbourGrid::nearest(const Eigen::Vector3f& query, float max_distance) const {
+  if (cells_.empty() || !(max_distance >= 0.0f) || !query.allFinite()) return -1;
+  float best = max_distance * max_distance;
+  int best_index = -1;
+  forEachCellAround(query, max_distance, [&](const Range& range) {
+    for (uint32_t i = range.begin; i < range.end; ++i) {
+      const float d2 = (sorted_[i] - query).squaredNorm();
+      if (d2 > best) continue;
+      // Ties go to the lower original index so that the answer does not depend on cell order.
+      if (d2 < best || best_index < 0 || original_index_[i] < best_index) {
+        best = d2;
+        best_index = original_index_[i];
+      }
+    }
+  });
+  return best_index;
+}
+
+void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, const std::vector<int>&)>& visit) const {
+  if (!(radius >= 0.0f)) {
+    throw Error(ErrorCode::kInvalidInput, "neighbour search radius " + std::to_string(radius) + " must be >= 0");
+  }
+  const float r2 = radius * radius;
+  const int s = span(radius);
+#pragma omp parallel
+  {
+    std::vector<const Range*> around;
+    std::vector<int> neighbours;
+#pragma omp for schedule(dynamic, 64)
+    for (std::ptrdiff_t cell = 0; cell < static_cast<std::ptrdiff_t>(cells_.size()); ++cell) {
+      const Range& home = cells_[static_cast<size_t>(cell)];
+      const int64_t cx = static_cast<int64_t>(home.key >> 42), cy = static_cast<int64_t>((home.key >> 21) & kMaxCell),
+                    cz = static_cast<int64_t>(home.key & kMaxCell);
+      // The cells around this one are looked up once for all of its points.
+      around.clear();
+      for (int64_t x = std::max<int64_t>(0, cx - s); x <= std::min<int64_t>(kMaxCell, cx + s); ++x) {
+        for (int64_t y = std::max<int64_t>(0, cy - s); y <= std::min<int64_t>(kMaxCell, cy + s); ++y) {
+          for (int64_t z = std::max<int64_t>(0, cz - s); z <= std::min<int64_t>(kMaxCell, cz + s); ++z) {
+            if (const Range* range = find(keyOf(x, y, z))) around.push_back(range);
+          }
+        }
+      }
+      for (uint32_t i = home.begin; i < home.end; ++i) {
+        const Eigen::Vector3f& p = sorted_[i];
+        neighbours.clear();
+        for (const Range* range : around) {
+          for (uint32_t j = range->begin; j < range->end; ++j) {
+            if ((sorted_[j] - p).squaredNorm() <= r2) neighbours.push_back(original_index_[j]);
+          }
+        }
+        visit(original_index_[i], neighbours);
+      }
+    }
+  }
+}
+
+template <class PointT>
+void GridSearch<PointT>::setInputCloud(const PointCloudConstPtr& cloud, const pcl::IndicesConstPtr& indices) {
+  this->input_ = cloud;
+  this->indices_ = indices;
+  subset_.clear();
+  std::vector<Eigen::Vector3f> points;
+  if (indices) {
+    subset_ = *indices;
+    points.reserve(indices->size());
+    for (auto i : *indices) points.push_back((*cloud)[i].getVector3fMap());
+  } else if (cloud) {
+    points.reserve(cloud->size());
+    for (const auto& p : *cloud) points.push_back(p.getVector3fMap());
+  }
+  grid_ = NeighbourGrid(std::move(points), cell_size_);
+}
+
+template <class PointT>
+int GridSearch<PointT>::search(const PointT& point, double radius, pcl::Indices& k_indices,
+                               std::vector<float>& k_sqr_distances, unsigned int max_nn, bool sort) const {
+  std::vector<int> found;
+  grid_.radiusSearch(point.getVector3fMap(), static_cast<float>(radius), found, k_sqr_distances, max_nn);
+  k_indices.assign(found.begin(), found.end());
+  if (!subset_.empty()) {
+    for (auto& i : k_indices) i = subset_[static_cast<size_t>(i)];
+  }
+  if (sort) {
+    std::vector<size_t> order(k_indices.size());
+    std::iota(order.begin(), order.end(), size_t{0});
+    std::sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+      return k_sqr_distances[a] < k_sqr_distances[b] || (k_sqr_distances[a] == k_sqr_distances[b] && k_indices[a] < k_indices[b]);
+    });
+    pcl::Indices sorted_indices(order.size());
+    std::vector<float> sorted_distances(order.size());
+    for (size_t i = 0; i < order.size(); ++i) {
+      sorted_indices[i] = k_indices[order[i]];
+      sorted_distances[i] = k_sqr_distances[order[i]];
+    }
+    k_indices.swap(sorted_indices);
+    k_sqr_distances.swap(sorted_distances);
+  }
+  return static_cast<int>(k_indices.size());
+}
+
+template <class PointT>
+int GridSearch<PointT>::radiusSearch(const PointT& point, double radius, pcl::Indices& k_indices,
+                                     std::vector<float>& k_sqr_distances, unsigned int max_nn) const {
+  return search(point, radius, k_indices, k_sqr_distances, max_nn, this->sorted_results_);
+}
+
+template <class PointT>
+int GridSearch<PointT>::nearestKSearch(const PointT& point, int k, pcl::Indices& k_indices,
+                                       std::vector<float>& k_sqr_distances) const {
+  k_indices.clear();
+  k_sqr_distances.clear();
+  if (k <= 0 || grid_.size() == 0 || !point.getVector3fMap().allFinite()) return 0;
+  const size_t wanted = std::min(static_cast<size_t>(k), grid_.size());
+  // Doubling the radius until k points are inside finds the k nearest: any point outside the
+  // final radius is farther than all those inside it. Past the cloud's extent the grid visits
+  // every cell, so the loop ends once the radius covers the distance to the farthest point.
+  for (double radius = grid_.cellSize();; radius *= 2.0) {
+    search(point, radius, k_indices, k_sqr_distances, 0, /*sort=*/true);
+    if (k_indices.size() >= wanted || !std::isfinite(radius * 2.0)) break;
+  }
+  const size_t n = std::min(wanted, k_indices.size());
+  k_indices.resize(n);
+  k_sqr_distances.resize(n);
+  return static_cast<int>(n);
+}
+
+template class GridSearch<pcl::PointNormal>;
+template class GridSearch<pcl::PointXYZ>;
+
+}  // namespace ism
