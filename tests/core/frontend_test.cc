@@ -1,6 +1,7 @@
 #include "core/frontend/frontend.h"
 
 #include <gtest/gtest.h>
+#include <pcl/surface/mls.h>
 #include <zlib.h>
 
 #include <algorithm>
@@ -10,6 +11,7 @@
 #include <set>
 
 #include "core/common/error.h"
+#include "core/frontend/neighbour_grid.h"
 #include "core/io/cloud_io.h"
 #include "core/model/model_file.h"
 #include "ism/v1/model.pb.h"
@@ -513,6 +515,142 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);  // contour fields still unset
   expectError([&] { parseModel(resealed(data), "broken.ismm"); }, ErrorCode::kCorruptModel,
               "contour parameters are invalid");
+}
+
+}  // namespace
+}  // namespace ism
+
+// --- The neighbour grid against brute force, and smoothing against PCL's MLS ---------------
+
+namespace ism {
+namespace {
+
+std::vector<Eigen::Vector3f> randomSurfacePoints(size_t n, unsigned seed) {
+  // A wavy sheet plus scattered points: clustered cells and nearly empty ones.
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> u(-0.5f, 0.5f);
+  std::vector<Eigen::Vector3f> points;
+  for (size_t i = 0; i < n; ++i) {
+    const float x = u(rng), y = u(rng);
+    points.emplace_back(x, y, i % 10 == 0 ? u(rng) : 0.1f * std::sin(6 * x) * std::cos(4 * y));
+  }
+  return points;
+}
+
+std::set<int> bruteForce(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& q, float r) {
+  std::set<int> found;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if ((points[i] - q).squaredNorm() <= r * r) found.insert(static_cast<int>(i));
+  }
+  return found;
+}
+
+TEST(NeighbourGrid, RadiusSearchNearestAndForEachPointMatchBruteForce) {
+  const auto points = randomSurfacePoints(3000, 7);
+  const NeighbourGrid grid(points, 0.05f);
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> u(-0.7f, 0.7f);
+  for (float r : {0.01f, 0.05f, 0.12f}) {  // below, at and above the cell size
+    for (int t = 0; t < 200; ++t) {
+      const Eigen::Vector3f q(u(rng), u(rng), u(rng) * 0.2f);
+      std::vector<int> indices;
+      std::vector<float> distances;
+      grid.radiusSearch(q, r, indices, distances);
+      ASSERT_EQ(std::set<int>(indices.begin(), indices.end()), bruteForce(points, q, r));
+      for (size_t i = 0; i < indices.size(); ++i) {
+        EXPECT_FLOAT_EQ(distances[i], (points[static_cast<size_t>(indices[i])] - q).squaredNorm());
+      }
+      const auto exact = bruteForce(points, q, r);
+      int best = -1;
+      for (int i : exact) {
+        if (best < 0 || (points[i] - q).squaredNorm() < (points[best] - q).squaredNorm()) best = i;
+      }
+      EXPECT_EQ(grid.nearest(q, r), best);
+    }
+  }
+  std::vector<std::set<int>> visited(points.size());
+  grid.forEachPoint(0.05f, [&](int i, const std::vector<int>& n) { visited[i] = std::set<int>(n.begin(), n.end()); });
+  for (size_t i = 0; i < points.size(); ++i) ASSERT_EQ(visited[i], bruteForce(points, points[i], 0.05f)) << i;
+  std::vector<int> capped;
+  std::vector<float> unused;
+  EXPECT_EQ(grid.radiusSearch(points[0], 0.3f, capped, unused, 5), 5u);
+}
+
+TEST(NeighbourGrid, ExtremeAndDegenerateInputsStayExact) {
+  // Points kilometres apart share clamped cells; the exact distance test still separates them.
+  std::vector<Eigen::Vector3f> points = {{0, 0, 0}, {0.01f, 0, 0}, {1e30f, 0, 0}, {-1e30f, 5, 5}, {3e4f, 0, 0}};
+  const NeighbourGrid grid(points, 0.01f);
+  std::vector<int> indices;
+  std::vector<float> distances;
+  grid.radiusSearch({0, 0, 0}, 0.02f, indices, distances);
+  EXPECT_EQ(std::set<int>(indices.begin(), indices.end()), (std::set<int>{0, 1}));
+  grid.radiusSearch({1e30f, 0, 0}, 1.0f, indices, distances);
+  EXPECT_EQ(indices, std::vector<int>{2});
+  EXPECT_EQ(grid.nearest({0.004f, 0, 0}, 0.01f), 0);
+  EXPECT_EQ(grid.nearest({5, 5, 5}, 0.01f), -1);
+  grid.radiusSearch({std::nanf(""), 0, 0}, 1.0f, indices, distances);
+  EXPECT_TRUE(indices.empty());
+  EXPECT_EQ(NeighbourGrid(std::vector<Eigen::Vector3f>{}, 0.01f).nearest({0, 0, 0}, 1), -1);
+  testing::expectError([] { NeighbourGrid(std::vector<Eigen::Vector3f>{}, 0.0f); }, ErrorCode::kInvalidInput, "cell size");
+}
+
+TEST(NeighbourGrid, PclSearchInterfaceFindsTheKNearest) {
+  const auto points = randomSurfacePoints(2000, 11);
+  pcl::PointCloud<pcl::PointNormal>::Ptr cloud(new pcl::PointCloud<pcl::PointNormal>);
+  for (const auto& p : points) {
+    pcl::PointNormal q;
+    q.getVector3fMap() = p;
+    cloud->push_back(q);
+  }
+  GridSearch<pcl::PointNormal> search(0.05f);
+  search.setInputCloud(cloud);
+  pcl::PointNormal query;
+  query.getVector3fMap() = Eigen::Vector3f(3, 3, 3);  // far outside: the radius has to grow
+  pcl::Indices k_indices;
+  std::vector<float> k_distances;
+  ASSERT_EQ(search.nearestKSearch(query, 4, k_indices, k_distances), 4);
+  std::vector<std::pair<float, int>> all;
+  for (size_t i = 0; i < points.size(); ++i) all.emplace_back((points[i] - query.getVector3fMap()).squaredNorm(), static_cast<int>(i));
+  std::sort(all.begin(), all.end());
+  for (int i = 0; i < 4; ++i) EXPECT_EQ(k_indices[static_cast<size_t>(i)], all[static_cast<size_t>(i)].second);
+  EXPECT_TRUE(std::is_sorted(k_distances.begin(), k_distances.end()));
+}
+
+TEST(Smooth, MatchesPclMovingLeastSquares) {
+  // A noisy curved patch at the scene's scale (1 cm spacing, 2 mm noise).
+  std::mt19937 rng(5);
+  std::normal_distribution<float> noise(0.0f, 0.002f);
+  XyzCloud cloud;
+  for (int i = 0; i < 40; ++i) {
+    for (int j = 0; j < 40; ++j) {
+      const float x = 0.01f * i, y = 0.01f * j;
+      cloud.push_back(pcl::PointXYZ(x, y, 1.0f + 0.5f * (x - 0.2f) * (x - 0.2f) + noise(rng)));
+    }
+  }
+  SmoothingParams params;
+  const XyzCloud ours = *smooth(cloud, params);
+  pcl::MovingLeastSquares<pcl::PointXYZ, pcl::PointXYZ> mls;
+  mls.setInputCloud(XyzCloud::ConstPtr(new XyzCloud(cloud)));
+  mls.setSearchRadius(params.radius);
+  mls.setPolynomialOrder(params.polynomial_order);
+  XyzCloud theirs;
+  mls.process(theirs);
+  ASSERT_EQ(ours.size(), theirs.size());
+  double moved = 0;
+  for (size_t i = 0; i < ours.size(); ++i) {
+    // PCL's k-d tree keeps neighbours strictly inside the radius, the grid includes it: a point
+    // exactly on the sphere can change a fit by a hair, never more.
+    EXPECT_LT((ours[i].getVector3fMap() - theirs[i].getVector3fMap()).norm(), 2e-4f) << i;
+    moved += (ours[i].getVector3fMap() - cloud[i].getVector3fMap()).norm();
+  }
+  EXPECT_GT(moved / ours.size(), 5e-4);  // it did smooth: the noise is 2 mm
+  testing::expectError(
+      [&] {
+        SmoothingParams bad;
+        bad.polynomial_order = 9;
+        smooth(cloud, bad);
+      },
+      ErrorCode::kInvalidInput, "polynomial_order");
 }
 
 }  // namespace
