@@ -2,10 +2,22 @@
 
 #include <algorithm>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace ism::server {
 
-WorkerPool::WorkerPool(int threads) {
-  for (int i = 0; i < std::max(1, threads); ++i) threads_.emplace_back([this] { run(); });
+WorkerPool::WorkerPool(int threads, int threads_per_task) {
+  for (int i = 0; i < std::max(1, threads); ++i) {
+    threads_.emplace_back([this, threads_per_task] {
+#ifdef _OPENMP
+      // OpenMP's thread count is per thread: this sets it for the regions this worker starts.
+      omp_set_num_threads(std::max(1, threads_per_task));
+#endif
+      run();
+    });
+  }
 }
 
 WorkerPool::~WorkerPool() {

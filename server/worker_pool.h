@@ -12,7 +12,10 @@ namespace ism::server {
 
 class WorkerPool {
  public:
-  explicit WorkerPool(int threads);
+  // Each worker runs one task at a time with `threads_per_task` OpenMP threads: recognition's
+  // parallel stages then use threads * threads_per_task threads in all, so a pool sized to the
+  // cores neither oversubscribes them under load nor leaves them idle.
+  WorkerPool(int threads, int threads_per_task);
   // Runs every task already submitted, then joins.
   ~WorkerPool();
   WorkerPool(const WorkerPool&) = delete;

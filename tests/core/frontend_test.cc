@@ -2,6 +2,10 @@
 
 #include <gtest/gtest.h>
 #include <pcl/surface/mls.h>
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <zlib.h>
 
 #include <algorithm>
@@ -429,6 +433,25 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
     }
   }
 }
+
+#ifdef _OPENMP
+TEST(ExtractFeatures, OneThreadAndSeveralGiveTheSameFeatures) {
+  // The server runs each request with its own OpenMP thread count; results must not depend on it.
+  const Scene scene = boxInFrontOfWall();
+  const int threads = omp_get_max_threads();
+  omp_set_num_threads(1);
+  const FrontEndResult one = extractFeatures(scene, FrontEndParams{}, true);
+  omp_set_num_threads(4);
+  const FrontEndResult four = extractFeatures(scene, FrontEndParams{}, true);
+  omp_set_num_threads(threads);
+  ASSERT_EQ(one.surface->size(), four.surface->size());
+  for (size_t i = 0; i < one.surface->size(); ++i) {
+    ASSERT_EQ((*one.surface)[i].getVector3fMap(), (*four.surface)[i].getVector3fMap()) << i;
+  }
+  EXPECT_EQ(one.features.positions, four.features.positions);
+  EXPECT_EQ(one.features.descriptors, four.features.descriptors);
+}
+#endif
 
 TEST(ExtractFeatures, StopsWhenAskedAndValidatesInput) {
   const Scene scene = boxInFrontOfWall();
