@@ -135,17 +135,34 @@ size_t NeighbourGrid::radiusSearch(const Eigen::Vector3f& query, float radius, s
   squared_distances.clear();
   if (cells_.empty() || !(radius >= 0.0f) || !query.allFinite()) return 0;
   const float r2 = radius * radius;
-  bool full = false;
+  if (max_results > 0) {
+    bool full = false;
+    forEachCellAround(query, radius, [&](const Range& range) {
+      for (uint32_t i = range.begin; i < range.end && !full; ++i) {
+        const float d2 = (sorted_[i] - query).squaredNorm();
+        if (d2 > r2) continue;
+        indices.push_back(original_index_[i]);
+        squared_distances.push_back(d2);
+        full = indices.size() >= max_results;
+      }
+    });
+    return indices.size();
+  }
+  // Branch-free compaction, as in forEachPoint.
+  size_t found = 0;
   forEachCellAround(query, radius, [&](const Range& range) {
-    for (uint32_t i = range.begin; i < range.end && !full; ++i) {
+    indices.resize(found + (range.end - range.begin));
+    squared_distances.resize(indices.size());
+    for (uint32_t i = range.begin; i < range.end; ++i) {
       const float d2 = (sorted_[i] - query).squaredNorm();
-      if (d2 > r2) continue;
-      indices.push_back(original_index_[i]);
-      squared_distances.push_back(d2);
-      full = max_results > 0 && indices.size() >= max_results;
+      indices[found] = original_index_[i];
+      squared_distances[found] = d2;
+      found += d2 <= r2;
     }
   });
-  return indices.size();
+  indices.resize(found);
+  squared_distances.resize(found);
+  return found;
 }
 
 int NeighbourGrid::nearest(const Eigen::Vector3f& query, float max_distance) const {
@@ -190,14 +207,21 @@ void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, con
           }
         }
       }
+      size_t candidates = 0;
+      for (const Range* range : around) candidates += range->end - range->begin;
       for (uint32_t i = home.begin; i < home.end; ++i) {
-        const Eigen::Vector3f& p = sorted_[i];
-        neighbours.clear();
+        const Eigen::Vector3f p = sorted_[i];
+        // Branch-free compaction: about half of the candidates are inside, so a branch on the
+        // distance would be mispredicted half of the time.
+        neighbours.resize(candidates);
+        size_t found = 0;
         for (const Range* range : around) {
           for (uint32_t j = range->begin; j < range->end; ++j) {
-            if ((sorted_[j] - p).squaredNorm() <= r2) neighbours.push_back(original_index_[j]);
+            neighbours[found] = original_index_[j];
+            found += (sorted_[j] - p).squaredNorm() <= r2;
           }
         }
+        neighbours.resize(found);
         visit(original_index_[i], neighbours);
       }
     }
@@ -251,7 +275,7 @@ int GridSearch<PointT>::search(const PointT& point, double radius, pcl::Indices&
 template <class PointT>
 int GridSearch<PointT>::radiusSearch(const PointT& point, double radius, pcl::Indices& k_indices,
                                      std::vector<float>& k_sqr_distances, unsigned int max_nn) const {
-  return search(point, radius, k_indices, k_sqr_distances, max_nn, this->sorted_results_);
+  return search(point, radius, k_indices, k_sqr_distances, max_nn, /*sort=*/false);
 }
 
 template <class PointT>
