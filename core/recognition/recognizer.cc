@@ -354,10 +354,18 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
   }
   std::sort(near.begin(), near.end());
   BinMap<Range> neighbours_of;
+  // Most votes land far from every candidate. A 32 KB bitmap of the bins near candidates (one
+  // bit per Fibonacci hash of the key) stays in L1 and turns those votes away before the
+  // full-mix hash probe into neighbours_of, which misses the cache on large scenes.
+  constexpr int kFilterBits = 18;
+  std::vector<uint64_t> near_filter(size_t{1} << (kFilterBits - 6), 0);
+  const auto filterBit = [](BinKey key) { return (key * 0x9E3779B97F4A7C15ull) >> (64 - kFilterBits); };
   for (uint32_t i = 0; i < near.size(); ++i) {
     Range& range = neighbours_of[near[i].first];
     if (range.end == 0) range.begin = i;
     range.end = i + 1;
+    const uint64_t bit = filterBit(near[i].first);
+    near_filter[bit >> 6] |= uint64_t{1} << (bit & 63);
   }
 
   // Cast the votes again and look only at those next to a candidate. (Skipping codewords whose
@@ -376,7 +384,10 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
         const ChunkBins in(votes, inverse_bin_size);
         for (uint32_t j = 0; j < votes.size; ++j) {
-          const Range* range = neighbours_of.find(in.key(j));
+          const BinKey key = in.key(j);
+          const uint64_t bit = filterBit(key);
+          if (!(near_filter[bit >> 6] >> (bit & 63) & 1)) continue;
+          const Range* range = neighbours_of.find(key);
           if (range == nullptr) continue;
           const Eigen::Vector3f p = votes.position(j);
           for (uint32_t i = range->begin; i < range->end; ++i) {
