@@ -1,6 +1,7 @@
 #include "core/frontend/frontend.h"
 
 #include <pcl/common/common.h>
+#include <pcl/common/eigen.h>
 #include <pcl/features/boundary.h>
 #include <pcl/features/normal_3d.h>
 #include <pcl/features/shot_lrf_omp.h>
@@ -141,10 +142,12 @@ Eigen::Vector3d projectMls(const XyzCloud& cloud, int i, const std::vector<int>&
     const Eigen::Vector3d d = cloud[static_cast<size_t>(n)].getVector3fMap().cast<double>() - centroid;
     covariance.noalias() += d * d.transpose();
   }
-  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eigen;
-  eigen.computeDirect(covariance);
-  const Eigen::Vector3d normal = eigen.eigenvectors().col(0);  // smallest eigenvalue first
-  if (!normal.allFinite()) return query;
+  // pcl::eigen33, the solver PCL's MLS uses, so the plane is PCL's also for degenerate
+  // (collinear, coincident) neighbourhoods.
+  double smallest = 0;
+  Eigen::Vector3d normal;
+  pcl::eigen33(covariance, smallest, normal);
+  if (!normal.allFinite() || std::abs(normal.norm() - 1.0) > 1e-6) return query;
   const Eigen::Vector3d foot = query - (query - centroid).dot(normal) * normal;
   const int order = params.polynomial_order;
   const int coefficients = (order + 1) * (order + 2) / 2;
@@ -177,8 +180,12 @@ Eigen::Vector3d projectMls(const XyzCloud& cloud, int i, const std::vector<int>&
     rhs.noalias() += weight * w * terms;
   }
   const Terms c = lhs.llt().solve(rhs);
-  // A degenerate fit (collinear neighbours) leaves the point on its plane, as PCL does.
-  if (!std::isfinite(c[0])) return foot;
+  // A degenerate fit leaves the point on its plane, as PCL does when the coefficient is NaN. A
+  // nearly singular one can also be finite and huge: on the service tests' synthetic 640x480
+  // frame such points landed far away, and the normals stage took 17-29 s instead of 0.1 s
+  // (see NeighbourGrid::build). A height beyond the search radius is no surface through these
+  // neighbours either.
+  if (!std::isfinite(c[0]) || std::abs(c[0]) > params.radius) return foot;
   return foot + c[0] * normal;
 }
 

@@ -40,6 +40,9 @@ class NeighbourGrid {
   size_t radiusSearch(const Eigen::Vector3f& query, float radius, std::vector<int>& indices,
                       std::vector<float>& squared_distances, size_t max_results = 0) const;
 
+  // How many points a search of `radius` around `query` compares: the cost of one search.
+  size_t candidates(const Eigen::Vector3f& query, float radius) const;
+
   // The nearest point within `max_distance` of `query`, or -1.
   int nearest(const Eigen::Vector3f& query, float max_distance) const;
 
@@ -65,7 +68,7 @@ class NeighbourGrid {
 
   float cell_size_ = 1.0f;
   float inverse_cell_ = 1.0f;
-  Eigen::Vector3f origin_ = Eigen::Vector3f::Zero();
+  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // double: it lies ~10^6 cells away from the points
   std::vector<Eigen::Vector3f> sorted_;  // points ordered by cell
   std::vector<int> original_index_;      // sorted_[i] was point original_index_[i]
   std::vector<Range> cells_;             // one per occupied cell, ascending key

@@ -617,6 +617,25 @@ TEST(NeighbourGrid, ExtremeAndDegenerateInputsStayExact) {
   testing::expectError([] { NeighbourGrid(std::vector<Eigen::Vector3f>{}, 0.0f); }, ErrorCode::kInvalidInput, "cell size");
 }
 
+TEST(NeighbourGrid, AFarOutlierDoesNotMergeTheCellsOfTheRest) {
+  // One point 100 km away used to stretch the grid so far that all others shared a few clamped
+  // cells. forEachPoint then offers each point every point of those cells as a candidate; with
+  // distinct cells a point on a 1 cm lattice sees at most 27 cells of 3 cm, i.e. 27 * 27 points.
+  std::vector<Eigen::Vector3f> points;
+  for (int i = 0; i < 60; ++i) {
+    for (int j = 0; j < 60; ++j) points.emplace_back(0.01f * i, 0.01f * j, 1.0f);
+  }
+  points.emplace_back(-1e5f, 0.0f, 0.0f);
+  const NeighbourGrid grid(points, 0.03f);
+  std::vector<int> indices;
+  std::vector<float> distances;
+  for (size_t i = 0; i + 1 < points.size(); i += 97) {
+    grid.radiusSearch(points[i], 0.03f, indices, distances);
+    EXPECT_EQ(std::set<int>(indices.begin(), indices.end()), bruteForce(points, points[i], 0.03f));
+  }
+  EXPECT_LE(grid.candidates(points[0], 0.03f), 27u * 27u);
+}
+
 TEST(NeighbourGrid, PclSearchInterfaceFindsTheKNearest) {
   const auto points = randomSurfacePoints(2000, 11);
   pcl::PointCloud<pcl::PointNormal>::Ptr cloud(new pcl::PointCloud<pcl::PointNormal>);
@@ -637,6 +656,21 @@ TEST(NeighbourGrid, PclSearchInterfaceFindsTheKNearest) {
   std::sort(all.begin(), all.end());
   for (int i = 0; i < 4; ++i) EXPECT_EQ(k_indices[static_cast<size_t>(i)], all[static_cast<size_t>(i)].second);
   EXPECT_TRUE(std::is_sorted(k_distances.begin(), k_distances.end()));
+}
+
+TEST(Smooth, NearlyCollinearNeighboursNeverThrowAPointAway) {
+  // Points on a line with sub-micrometre jitter: plane and polynomial fit are degenerate. Every
+  // smoothed point still stays within the search radius of the line.
+  std::mt19937 rng(9);
+  std::normal_distribution<float> jitter(0.0f, 1e-7f);
+  XyzCloud cloud;
+  for (int i = 0; i < 400; ++i) cloud.push_back(pcl::PointXYZ(0.005f * i, jitter(rng), 1.0f + jitter(rng)));
+  SmoothingParams params;
+  const XyzCloud::Ptr smoothed = smooth(cloud, params);
+  ASSERT_FALSE(smoothed->empty());
+  for (const auto& p : *smoothed) {
+    EXPECT_LT(std::hypot(p.y, p.z - 1.0f), params.radius) << p.x << " " << p.y << " " << p.z;
+  }
 }
 
 TEST(Smooth, MatchesPclMovingLeastSquares) {
