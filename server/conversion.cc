@@ -1,5 +1,8 @@
 #include "server/conversion.h"
 
+#include <grpcpp/support/proto_buffer_reader.h>
+#include <grpcpp/impl/codegen/proto_utils.h>
+#include <grpcpp/support/proto_buffer_writer.h>
 #include <pcl/common/transforms.h>
 
 #include <cmath>
@@ -140,6 +143,24 @@ void setQuat(const Eigen::Quaternionf& q, v1::Quaternion* out) {
 }
 
 }  // namespace
+
+void decodeMessage(const grpc::ByteBuffer& bytes, const std::string& what, google::protobuf::MessageLite* out) {
+  grpc::ByteBuffer shared(bytes);  // shares the slices: the reader wants a mutable buffer
+  grpc::ProtoBufferReader reader(&shared);
+  if (!reader.status().ok() || !out->ParseFromZeroCopyStream(&reader)) {
+    throw invalid(what + " (" + std::to_string(bytes.Length()) + " bytes) is not a valid " + out->GetTypeName() +
+                  ": protobuf cannot decode it (malformed or truncated, or a string that is not UTF-8)");
+  }
+}
+
+void encodeMessage(const google::protobuf::MessageLite& message, grpc::ByteBuffer* out) {
+  bool own_buffer = false;
+  const grpc::Status status = grpc::GenericSerialize<grpc::ProtoBufferWriter, google::protobuf::MessageLite>(
+      message, out, &own_buffer);
+  if (!status.ok()) {
+    throw Error(ErrorCode::kInternal, "cannot encode " + message.GetTypeName() + ": " + status.error_message());
+  }
+}
 
 Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits) {
   const Eigen::Vector3f origin = vec(scene.sensor_origin());

@@ -2,14 +2,41 @@
 
 #include <spdlog/spdlog.h>
 
+#include "core/common/error.h"
 #include "server/status_mapping.h"
 
 namespace ism::server {
 
+bool OpenStreams::add(FrameStream* stream) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  streams_.insert(stream);
+  return !shutting_down_;
+}
+
+void OpenStreams::remove(FrameStream* stream) {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  streams_.erase(stream);
+}
+
+size_t OpenStreams::size() const {
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  return streams_.size();
+}
+
+void OpenStreams::shutDown() {
+  // Held throughout: a stream cannot finish its OnDone (and be deleted) on another thread while
+  // it is being told. A copy, because one that ends right here leaves the set meanwhile.
+  std::lock_guard<std::recursive_mutex> lock(mutex_);
+  shutting_down_ = true;
+  const std::set<FrameStream*> streams = streams_;
+  for (FrameStream* stream : streams) stream->shutDown();
+}
+
 FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context,
-                         std::unique_ptr<StreamSlot> slot)
+                         std::unique_ptr<StreamSlot> slot, OpenStreams& open)
     : service_(service),
       context_(context),
+      open_(open),
       slot_(std::move(slot)),
       stream_id_(requestId("")),
       should_stop_(callStopper(context, &cancelled_)) {
@@ -17,6 +44,17 @@ FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerCont
   spdlog::info("[{}] stream opened by {}", stream_id_, context_->peer());
   reading_ = true;
   StartRead(&read_buffer_);
+  if (!open_.add(this)) shutDown();  // opened while the server is stopping
+}
+
+void FrameStream::shutDown() {
+  Actions actions;
+  {
+    std::lock_guard<std::mutex> lock(mutex_);
+    shutting_down_ = true;
+    finishIfDoneLocked(&actions);
+  }
+  act(actions);
 }
 
 void FrameStream::act(const Actions& actions) {
@@ -31,17 +69,34 @@ void FrameStream::act(const Actions& actions) {
 }
 
 void FrameStream::OnReadDone(bool ok) {
+  // Decoded before taking the lock: only this reaction touches the read buffer, and a big frame
+  // must not hold up the workers' bookkeeping.
+  v1::StreamFramesRequest request;
+  grpc::Status undecodable;
+  if (ok) {
+    try {
+      decodeMessage(read_buffer_, "message " + std::to_string(++messages_read_) + " of the stream", &request);
+    } catch (const Error& e) {
+      undecodable = grpc::Status(toStatusCode(e.code()), e.what());
+    }
+    read_buffer_.Clear();
+  }
   Actions actions;
   {
     std::lock_guard<std::mutex> lock(mutex_);
     reading_ = false;
     if (!ok) {
       reads_done_ = true;  // the client half-closed (or the call broke: OnCancel says which)
+    } else if (shutting_down_) {
+      // Not taken: the stream ends UNAVAILABLE and this frame stays unanswered, so its client
+      // knows to send it again.
+    } else if (!undecodable.ok()) {
+      if (failure_.ok()) failure_ = undecodable;
     } else {
-      if (read_buffer_.has_settings()) {
+      if (request.has_settings()) {
         auto settings = std::make_shared<Settings>();
-        settings->options = read_buffer_.settings().options();
-        switch (read_buffer_.settings().policy()) {
+        settings->options = request.settings().options();
+        switch (request.settings().policy()) {
           case v1::BACKPRESSURE_POLICY_UNSPECIFIED:
           case v1::BACKPRESSURE_POLICY_EVERY_FRAME:
             break;
@@ -50,21 +105,20 @@ void FrameStream::OnReadDone(bool ok) {
             break;
           default:
             failure_ = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                                    "settings.policy " + std::to_string(read_buffer_.settings().policy()) +
-                                        " (frame " + std::to_string(read_buffer_.frame_id()) + ") is not supported");
+                                    "settings.policy " + std::to_string(request.settings().policy()) + " (frame " +
+                                        std::to_string(request.frame_id()) + ") is not supported");
         }
         settings_ = std::move(settings);
       }
-      if (failure_.ok() && read_buffer_.has_scene()) {
+      if (failure_.ok() && request.has_scene()) {
         if (settings_->policy == v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS && !queued_.empty()) {
           for (const auto& frame : queued_) skipped_.push_back(frame.request.frame_id());
           service_.metrics.framesSkipped(queued_.size());
           queued_.clear();
         }
-        queued_.push_back({std::move(read_buffer_), settings_, std::chrono::steady_clock::now()});
+        queued_.push_back({std::move(request), settings_, std::chrono::steady_clock::now()});
         ++frames_;
       }
-      read_buffer_.Clear();
       scheduleLocked();
       resumeReadingLocked(&actions);
     }
@@ -76,7 +130,7 @@ void FrameStream::OnReadDone(bool ok) {
 void FrameStream::resumeReadingLocked(Actions* actions) {
   const bool queue_full = settings_->policy != v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS &&
                           queued_.size() >= kMaxQueuedFrames;
-  if (reading_ || reads_done_ || queue_full || cancelled_ || !failure_.ok()) return;
+  if (reading_ || reads_done_ || queue_full || cancelled_ || shutting_down_ || !failure_.ok()) return;
   reading_ = true;
   actions->read = true;
 }
@@ -102,7 +156,8 @@ void FrameStream::processNext() {
   }
   act(actions);  // no finish possible: processing_ is still set
 
-  v1::FrameResult result = process(frame, std::move(skipped));
+  grpc::ByteBuffer result;
+  encodeMessage(process(frame, std::move(skipped)), &result);
 
   actions = {};
   {
@@ -172,19 +227,26 @@ void FrameStream::OnCancel() {
 }
 
 void FrameStream::finishIfDoneLocked(Actions* actions) {
-  if (finished_ || processing_ || writing_ || reading_) return;
+  // A shutdown does not wait for the client's next frame: the pending read ends with the call.
+  if (finished_ || processing_ || writing_ || (reading_ && !shutting_down_)) return;
   const bool stopped = cancelled_ || !failure_.ok();
-  if (!stopped && !(reads_done_ && queued_.empty() && results_.empty())) return;
+  const bool drained = queued_.empty() && results_.empty();
+  if (!stopped && !(drained && (reads_done_ || shutting_down_))) return;
   finished_ = true;
   if (!failure_.ok()) {
     final_status_ = failure_;
   } else if (cancelled_) {
     final_status_ = withDeadlineReason(context_, {grpc::StatusCode::CANCELLED, "the client cancelled the stream"});
+  } else if (!reads_done_) {
+    final_status_ = {grpc::StatusCode::UNAVAILABLE,
+                     "the server is shutting down: frames of this stream without a result were not processed; "
+                     "send them again (to another server, or after the restart)"};
   }
   actions->finish = true;
 }
 
 void FrameStream::OnDone() {
+  open_.remove(this);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - started_).count();
   service_.metrics.streamClosed();
   service_.metrics.recordRequest("StreamFrames", final_status_.error_code(), seconds);

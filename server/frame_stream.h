@@ -5,7 +5,9 @@
 //     gRPC flow control slows the sender.
 //   LATEST_FRAME_WINS: reading never pauses; a newer frame replaces the waiting ones, whose
 //     ids ride along with the next result.
-// A frame that fails (bad input) gets a FrameResult carrying the error; the stream goes on.
+// A frame that fails (bad input) gets a FrameResult carrying the error; the stream goes on. A
+// message that is not a StreamFramesRequest at all ends the stream: its frame id is unknown.
+// Messages travel as bytes, decoded and encoded here (see decodeMessage).
 #include <grpcpp/support/server_callback.h>
 
 #include <atomic>
@@ -13,6 +15,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <vector>
 
 #include "ism/v1/service.grpc.pb.h"
@@ -21,13 +24,38 @@
 
 namespace ism::server {
 
-class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest, v1::FrameResult> {
+class FrameStream;
+
+// The open streams. A shutdown must end them itself: gRPC's drain waits for every call, and a
+// client streaming from a sensor never ends its own.
+class OpenStreams {
+ public:
+  bool add(FrameStream* stream);  // false once shutDown() ran: the stream must end at once
+  void remove(FrameStream* stream);
+  // Every open stream stops reading, answers the frames it already took and ends UNAVAILABLE.
+  void shutDown();
+  size_t size() const;
+
+ private:
+  // Recursive: a stream that ends inside shutDown() may leave the set from the same thread.
+  mutable std::recursive_mutex mutex_;
+  std::set<FrameStream*> streams_;
+  bool shutting_down_ = false;
+};
+
+class FrameStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
  public:
   static constexpr size_t kMaxQueuedFrames = 4;
   static constexpr size_t kMaxPendingResults = 4;
 
   // `slot` (may be null) is the client's stream slot, given back when the stream is done.
-  FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context, std::unique_ptr<StreamSlot> slot);
+  // `open` lists the stream until OnDone.
+  FrameStream(const ServiceContext& service, grpc::CallbackServerContext* context, std::unique_ptr<StreamSlot> slot,
+              OpenStreams& open);
+
+  // The server is stopping: read no more frames, answer the queued ones, end UNAVAILABLE so that
+  // the client sends the rest again (elsewhere, or after the restart).
+  void shutDown();
 
   void OnReadDone(bool ok) override;
   void OnWriteDone(bool ok) override;
@@ -49,7 +77,7 @@ class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest
   // another thread never waits for us. Finish goes last: `this` may be deleted right after.
   struct Actions {
     bool read = false;
-    const v1::FrameResult* write = nullptr;
+    const grpc::ByteBuffer* write = nullptr;
     bool finish = false;
   };
   void act(const Actions& actions);
@@ -63,6 +91,7 @@ class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest
 
   const ServiceContext& service_;
   grpc::CallbackServerContext* context_;
+  OpenStreams& open_;
   std::unique_ptr<StreamSlot> slot_;
   const std::string stream_id_;
   const std::chrono::steady_clock::time_point started_ = std::chrono::steady_clock::now();
@@ -70,16 +99,18 @@ class FrameStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest
   ShouldStop should_stop_;
 
   std::mutex mutex_;
-  v1::StreamFramesRequest read_buffer_;
+  grpc::ByteBuffer read_buffer_;
+  size_t messages_read_ = 0;
   std::shared_ptr<const Settings> settings_ = std::make_shared<Settings>();
   std::deque<Frame> queued_;
   std::vector<uint64_t> skipped_;
-  std::deque<v1::FrameResult> results_;
+  std::deque<grpc::ByteBuffer> results_;  // encoded FrameResults
   bool reading_ = false;
   bool reads_done_ = false;
   bool processing_ = false;
   bool writing_ = false;
   bool finished_ = false;
+  bool shutting_down_ = false;
   grpc::Status failure_;  // ends the whole stream (bad settings, client stopped reading)
   grpc::Status final_status_;
   size_t frames_ = 0;

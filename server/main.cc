@@ -179,9 +179,15 @@ int main(int argc, char** argv) {
     // Health first, so load balancers stop sending new calls while the old ones finish.
     server->GetHealthCheckService()->SetServingStatus(false);
     const auto drain_start = std::chrono::steady_clock::now();
-    server->Shutdown(std::chrono::system_clock::now() +
-                     std::chrono::duration_cast<std::chrono::system_clock::duration>(
-                         std::chrono::duration<double>(drain_seconds)));
+    const auto drain_end =
+        std::chrono::system_clock::now() +
+        std::chrono::duration_cast<std::chrono::system_clock::duration>(std::chrono::duration<double>(drain_seconds));
+    // Our drain first (new calls refused UNAVAILABLE, streams ended), gRPC's once nothing runs.
+    service.beginShutdown();
+    while (!service.idle(std::chrono::milliseconds(100)) && std::chrono::system_clock::now() < drain_end) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    server->Shutdown(drain_end);
     spdlog::info("stopped after {:.0f}ms of draining",
                  std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - drain_start).count());
   } catch (const std::exception& e) {

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <type_traits>
 
 #include "core/common/error.h"
 #include "server/frame_stream.h"
@@ -12,7 +13,7 @@ namespace ism::server {
 namespace {
 
 // A stream refused before it started: ends at once with the reason.
-class RejectedStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequest, v1::FrameResult> {
+class RejectedStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
  public:
   explicit RejectedStream(const grpc::Status& status) { Finish(status); }
   void OnDone() override { delete this; }
@@ -20,31 +21,62 @@ class RejectedStream final : public grpc::ServerBidiReactor<v1::StreamFramesRequ
 
 }  // namespace
 
-template <typename Work>
+template <typename Request, typename Response, typename Work>
 grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* context, const char* rpc,
-                                                   Access needed, const std::string& given_request_id, Work work) {
+                                                   Access needed, const Raw* request_bytes, Raw* response_bytes,
+                                                   Work work) {
   auto* reactor = context->DefaultReactor();
-  std::string request_id = requestId(given_request_id);
-  // Refused before queueing: callers without a valid token never take a worker's time.
-  if (grpc::Status denied = access_.authorize(*context, rpc, needed); !denied.ok()) {
-    finish(context, reactor, rpc, request_id, denied, 0);
+  ++running_calls_;  // before the check: a shutdown that saw none running finds this call refused
+  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+  if (shutting_down_) {
+    --running_calls_;  // counted as done before it is, never after: Finish lets a shutdown proceed
+    finish(context, reactor, rpc, requestId(""),
+           {grpc::StatusCode::UNAVAILABLE, "the server is shutting down: send the call again (to another server, "
+                                           "or after the restart)"},
+           0);
     return reactor;
   }
-  context_.pool.submit([this, context, reactor, rpc, request_id = std::move(request_id),
-                        work = std::move(work)]() mutable {
+  // Refused before queueing and decoding: callers without a valid token never take a worker's time.
+  if (grpc::Status denied = access_.authorize(*context, rpc, needed); !denied.ok()) {
+    --running_calls_;
+    finish(context, reactor, rpc, requestId(""), denied, 0);
+    return reactor;
+  }
+  context_.pool.submit([this, context, reactor, rpc, request_bytes, response_bytes, work = std::move(work)]() mutable {
     const auto start = std::chrono::steady_clock::now();
     grpc::Status status;
+    std::string request_id;
     try {
+      Request request;
+      decodeMessage(*request_bytes, std::string(rpc) + ": the request", &request);
+      if constexpr (std::is_same_v<Request, v1::RecognizeRequest>) request_id = request.request_id();
+      request_id = requestId(request_id);
       // A call that waited in the queue past its deadline is not worth starting.
       throwIfStopped(callStopper(context), rpc);
-      work(request_id);
+      Response response;
+      work(request, &response, request_id);
+      encodeMessage(response, response_bytes);
     } catch (...) {
       status = withDeadlineReason(context, statusFromCurrentException());
     }
+    if (request_id.empty()) request_id = requestId("");
+    // Before Finish: once the last call finished, the server (and this service) may be destroyed.
+    last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+    --running_calls_;
     finish(context, reactor, rpc, request_id, status,
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   });
   return reactor;
+}
+
+void RecognizerService::beginShutdown() {
+  shutting_down_ = true;
+  streams_.shutDown();
+}
+
+bool RecognizerService::idle(std::chrono::milliseconds quiet) const {
+  const auto last = std::chrono::steady_clock::time_point(std::chrono::steady_clock::duration(last_call_.load()));
+  return running_calls_ == 0 && streams_.size() == 0 && std::chrono::steady_clock::now() - last >= quiet;
 }
 
 void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor,
@@ -58,18 +90,21 @@ void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::Serve
   reactor->Finish(status);
 }
 
-grpc::ServerUnaryReactor* RecognizerService::Recognize(grpc::CallbackServerContext* context,
-                                                       const v1::RecognizeRequest* request,
-                                                       v1::RecognizeResponse* response) {
-  return unary(context, "Recognize", Access::kUser, request->request_id(), [=](const std::string& request_id) {
-    response->set_request_id(request_id);
-    context_.recognize(request_id, request->scene(), request->options(), callStopper(context),
-                       response->mutable_result());
-  });
+grpc::ServerUnaryReactor* RecognizerService::Recognize(grpc::CallbackServerContext* context, const Raw* request,
+                                                       Raw* response) {
+  return unary<v1::RecognizeRequest, v1::RecognizeResponse>(
+      context, "Recognize", Access::kUser, request, response,
+      [this, context](const v1::RecognizeRequest& request, v1::RecognizeResponse* response,
+                      const std::string& request_id) {
+        response->set_request_id(request_id);
+        context_.recognize(request_id, request.scene(), request.options(), callStopper(context),
+                           response->mutable_result());
+      });
 }
 
-grpc::ServerBidiReactor<v1::StreamFramesRequest, v1::FrameResult>* RecognizerService::StreamFrames(
+grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* RecognizerService::StreamFrames(
     grpc::CallbackServerContext* context) {
+  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
   std::unique_ptr<StreamSlot> slot;
   if (grpc::Status denied = access_.openStream(*context, &slot); !denied.ok()) {
     context_.metrics.recordRequest("StreamFrames", denied.error_code(), 0);
@@ -77,61 +112,70 @@ grpc::ServerBidiReactor<v1::StreamFramesRequest, v1::FrameResult>* RecognizerSer
                  denied.error_message());
     return new RejectedStream(denied);
   }
-  return new FrameStream(context_, context, std::move(slot));  // deletes itself in OnDone
+  return new FrameStream(context_, context, std::move(slot), streams_);  // deletes itself in OnDone
 }
 
-grpc::ServerUnaryReactor* RecognizerService::ListModels(grpc::CallbackServerContext* context,
-                                                        const v1::ListModelsRequest*,
-                                                        v1::ListModelsResponse* response) {
-  return unary(context, "ListModels", Access::kUser, "", [=](const std::string&) {
-    for (const auto& model : context_.models.list()) *response->add_models() = model->info;
-  });
+grpc::ServerUnaryReactor* RecognizerService::ListModels(grpc::CallbackServerContext* context, const Raw* request,
+                                                        Raw* response) {
+  return unary<v1::ListModelsRequest, v1::ListModelsResponse>(
+      context, "ListModels", Access::kUser, request, response,
+      [this](const v1::ListModelsRequest&, v1::ListModelsResponse* response, const std::string&) {
+        for (const auto& model : context_.models.list()) *response->add_models() = model->info;
+      });
 }
 
-grpc::ServerUnaryReactor* RecognizerService::GetModel(grpc::CallbackServerContext* context,
-                                                      const v1::GetModelRequest* request, v1::ModelInfo* response) {
-  return unary(context, "GetModel", Access::kUser, "",
-               [=](const std::string&) { *response = context_.models.get(request->name())->info; });
+grpc::ServerUnaryReactor* RecognizerService::GetModel(grpc::CallbackServerContext* context, const Raw* request,
+                                                      Raw* response) {
+  return unary<v1::GetModelRequest, v1::ModelInfo>(
+      context, "GetModel", Access::kUser, request, response,
+      [this](const v1::GetModelRequest& request, v1::ModelInfo* response, const std::string&) {
+        *response = context_.models.get(request.name())->info;
+      });
 }
 
-grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerContext* context,
-                                                       const v1::LoadModelRequest* request, v1::ModelInfo* response) {
-  return unary(context, "LoadModel", Access::kAdmin, "", [=](const std::string& request_id) {
-    if (request->name().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: name is empty");
-    if (request->path().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: path is empty");
-    *response = context_.models.load(request->name(), request->path())->info;
-    context_.metrics.setLoadedModels(context_.models.size());
-    spdlog::info("[{}] loaded model {}@{} from {} in {:.1f}ms", request_id, response->name(), response->version(),
-                 response->path(), response->load_ms());
-  });
+grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerContext* context, const Raw* request,
+                                                       Raw* response) {
+  return unary<v1::LoadModelRequest, v1::ModelInfo>(
+      context, "LoadModel", Access::kAdmin, request, response,
+      [this](const v1::LoadModelRequest& request, v1::ModelInfo* response, const std::string& request_id) {
+        if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: name is empty");
+        if (request.path().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: path is empty");
+        *response = context_.models.load(request.name(), request.path())->info;
+        context_.metrics.setLoadedModels(context_.models.size());
+        spdlog::info("[{}] loaded model {}@{} from {} in {:.1f}ms", request_id, response->name(),
+                     response->version(), response->path(), response->load_ms());
+      });
 }
 
-grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerContext* context,
-                                                         const v1::UnloadModelRequest* request,
-                                                         v1::UnloadModelResponse*) {
-  return unary(context, "UnloadModel", Access::kAdmin, "", [=](const std::string& request_id) {
-    context_.models.unload(request->name());
-    context_.metrics.setLoadedModels(context_.models.size());
-    spdlog::info("[{}] unloaded model {}", request_id, request->name());
-  });
+grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerContext* context, const Raw* request,
+                                                         Raw* response) {
+  return unary<v1::UnloadModelRequest, v1::UnloadModelResponse>(
+      context, "UnloadModel", Access::kAdmin, request, response,
+      [this](const v1::UnloadModelRequest& request, v1::UnloadModelResponse*, const std::string& request_id) {
+        if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "UnloadModel: name is empty");
+        context_.models.unload(request.name());
+        context_.metrics.setLoadedModels(context_.models.size());
+        spdlog::info("[{}] unloaded model {}", request_id, request.name());
+      });
 }
 
-grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerContext* context,
-                                                          const v1::ReloadModelsRequest*,
-                                                          v1::ReloadModelsResponse* response) {
-  return unary(context, "ReloadModels", Access::kAdmin, "", [=](const std::string& request_id) {
-    for (const auto& failure : context_.models.reload()) {
-      auto* out = response->add_failures();
-      out->set_name(failure.name);
-      out->set_path(failure.path);
-      out->set_message(failure.message);
-      spdlog::warn("[{}] reload of {} failed: {}", request_id, failure.path, failure.message);
-    }
-    for (const auto& model : context_.models.list()) *response->add_models() = model->info;
-    context_.metrics.setLoadedModels(context_.models.size());
-    spdlog::info("[{}] reloaded: {} models, {} failures", request_id, response->models_size(),
-                 response->failures_size());
-  });
+grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerContext* context, const Raw* request,
+                                                          Raw* response) {
+  return unary<v1::ReloadModelsRequest, v1::ReloadModelsResponse>(
+      context, "ReloadModels", Access::kAdmin, request, response,
+      [this](const v1::ReloadModelsRequest&, v1::ReloadModelsResponse* response, const std::string& request_id) {
+        for (const auto& failure : context_.models.reload()) {
+          auto* out = response->add_failures();
+          out->set_name(failure.name);
+          out->set_path(failure.path);
+          out->set_message(failure.message);
+          spdlog::warn("[{}] reload of {} failed: {}", request_id, failure.path, failure.message);
+        }
+        for (const auto& model : context_.models.list()) *response->add_models() = model->info;
+        context_.metrics.setLoadedModels(context_.models.size());
+        spdlog::info("[{}] reloaded: {} models, {} failures", request_id, response->models_size(),
+                     response->failures_size());
+      });
 }
 
 }  // namespace ism::server

@@ -1,46 +1,71 @@
 #pragma once
 // ism.v1.FurnitureRecognizer on gRPC's callback API. Handlers return at once; the work runs
 // on the worker pool and finishes the call from there.
+#include <atomic>
+#include <chrono>
 #include <string>
 
 #include "ism/v1/service.grpc.pb.h"
 #include "server/auth.h"
+#include "server/frame_stream.h"
 #include "server/service_context.h"
 
 namespace ism::server {
 
-class RecognizerService final : public v1::FurnitureRecognizer::CallbackService {
+// Every method is registered raw (bytes in, bytes out) and decodes its request itself, so
+// that a request protobuf cannot decode gets INVALID_ARGUMENT naming it (see decodeMessage).
+using RawFurnitureRecognizer = v1::FurnitureRecognizer::WithRawCallbackMethod_Recognize<
+    v1::FurnitureRecognizer::WithRawCallbackMethod_StreamFrames<
+        v1::FurnitureRecognizer::WithRawCallbackMethod_ListModels<
+            v1::FurnitureRecognizer::WithRawCallbackMethod_GetModel<
+                v1::FurnitureRecognizer::WithRawCallbackMethod_LoadModel<
+                    v1::FurnitureRecognizer::WithRawCallbackMethod_UnloadModel<
+                        v1::FurnitureRecognizer::WithRawCallbackMethod_ReloadModels<
+                            v1::FurnitureRecognizer::Service>>>>>>>;
+
+class RecognizerService final : public RawFurnitureRecognizer {
  public:
   // `access` decides who may call; it must outlive every call (streams hold slots in it).
   RecognizerService(ServiceContext context, AccessControl& access) : context_(context), access_(access) {}
 
-  grpc::ServerUnaryReactor* Recognize(grpc::CallbackServerContext* context, const v1::RecognizeRequest* request,
-                                      v1::RecognizeResponse* response) override;
-  grpc::ServerBidiReactor<v1::StreamFramesRequest, v1::FrameResult>* StreamFrames(
-      grpc::CallbackServerContext* context) override;
-  grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context, const v1::ListModelsRequest* request,
-                                       v1::ListModelsResponse* response) override;
-  grpc::ServerUnaryReactor* GetModel(grpc::CallbackServerContext* context, const v1::GetModelRequest* request,
-                                     v1::ModelInfo* response) override;
-  grpc::ServerUnaryReactor* LoadModel(grpc::CallbackServerContext* context, const v1::LoadModelRequest* request,
-                                      v1::ModelInfo* response) override;
-  grpc::ServerUnaryReactor* UnloadModel(grpc::CallbackServerContext* context, const v1::UnloadModelRequest* request,
-                                        v1::UnloadModelResponse* response) override;
-  grpc::ServerUnaryReactor* ReloadModels(grpc::CallbackServerContext* context,
-                                         const v1::ReloadModelsRequest* request,
-                                         v1::ReloadModelsResponse* response) override;
+  using Raw = grpc::ByteBuffer;
+  grpc::ServerUnaryReactor* Recognize(grpc::CallbackServerContext* context, const Raw* request, Raw* response) override;
+  grpc::ServerBidiReactor<Raw, Raw>* StreamFrames(grpc::CallbackServerContext* context) override;
+  grpc::ServerUnaryReactor* ListModels(grpc::CallbackServerContext* context, const Raw* request,
+                                       Raw* response) override;
+  grpc::ServerUnaryReactor* GetModel(grpc::CallbackServerContext* context, const Raw* request, Raw* response) override;
+  grpc::ServerUnaryReactor* LoadModel(grpc::CallbackServerContext* context, const Raw* request, Raw* response) override;
+  grpc::ServerUnaryReactor* UnloadModel(grpc::CallbackServerContext* context, const Raw* request,
+                                        Raw* response) override;
+  grpc::ServerUnaryReactor* ReloadModels(grpc::CallbackServerContext* context, const Raw* request,
+                                         Raw* response) override;
+
+  // The first step of a shutdown, before grpc::Server::Shutdown: new calls get UNAVAILABLE and
+  // open streams end (see OpenStreams::shutDown), while running calls go on. gRPC's own drain
+  // would wait for the streams until its deadline, and answers a call that arrives once it has
+  // begun with CANCELLED (grpc/grpc#41785), which clients do not retry.
+  void beginShutdown();
+  // After beginShutdown: no call running, no stream open, and none arrived for `quiet` (a
+  // client answered last may be sending its next call right now: it should be refused here, not
+  // reach gRPC's shutdown).
+  bool idle(std::chrono::milliseconds quiet) const;
 
  private:
-  // Checks the caller's token, then runs `work(request_id)` on the pool, maps what it throws,
+  // Checks the caller's token, then on the pool decodes the request, runs
+  // `work(request, &response, request_id)` and encodes the response; maps what it throws,
   // records metrics, logs failures.
-  template <typename Work>
+  template <typename Request, typename Response, typename Work>
   grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* rpc, Access needed,
-                                  const std::string& given_request_id, Work work);
+                                  const Raw* request_bytes, Raw* response_bytes, Work work);
   void finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor, const char* rpc,
               const std::string& request_id, const grpc::Status& status, double seconds);
 
   ServiceContext context_;
   AccessControl& access_;
+  OpenStreams streams_;
+  std::atomic<bool> shutting_down_{false};
+  std::atomic<size_t> running_calls_{0};  // unary calls accepted and not finished
+  std::atomic<std::chrono::steady_clock::rep> last_call_{0};  // when the last call arrived or ended
 };
 
 }  // namespace ism::server

@@ -33,9 +33,10 @@ void Connection::add(CLI::App* app) {
       ->envname("ISM_TOKEN");
 }
 
-std::shared_ptr<grpc::Channel> Connection::channel() const {
+std::shared_ptr<grpc::Channel> Connection::channel(bool own_connection) const {
   grpc::ChannelArguments args;
   args.SetMaxReceiveMessageSize(64 * 1024 * 1024);
+  if (own_connection) args.SetInt(GRPC_ARG_USE_LOCAL_SUBCHANNEL_POOL, 1);
   std::shared_ptr<grpc::ChannelCredentials> credentials = grpc::InsecureChannelCredentials();
   if (tls || !tls_ca.empty() || !tls_cert.empty() || !tls_server_name.empty()) {
     grpc::SslCredentialsOptions options;

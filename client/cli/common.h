@@ -31,7 +31,9 @@ struct Connection {
   std::string token;
 
   void add(CLI::App* app);
-  std::shared_ptr<grpc::Channel> channel() const;
+  // `own_connection`: subchannels of its own rather than gRPC's shared pool, so that a channel
+  // made to reconnect does not inherit another's backoff from a server that went away.
+  std::shared_ptr<grpc::Channel> channel(bool own_connection = false) const;
   void prepare(grpc::ClientContext* context) const;
 };
 

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <iomanip>
 #include <iostream>
+#include <map>
 #include <mutex>
 #include <thread>
 
@@ -97,76 +98,161 @@ int runRecognize(const Connection& connection, const std::vector<std::string>& f
   return exit_code;
 }
 
+// A frame sent on a stream and not answered yet: sent again after a reconnection.
+struct SentFrame {
+  int64_t timestamp_us = 0;
+  ism::v1::Scene scene;
+};
+
+constexpr auto kFirstReconnectDelay = std::chrono::milliseconds(250);
+constexpr auto kMaxReconnectDelay = std::chrono::seconds(8);
+
+// Streams frames; when the stream breaks with UNAVAILABLE (server restarted, crashed, or shut down
+// for an update), opens a new one after a growing delay, sends the frames that had no result yet
+// and goes on with the source. Gives up after `reconnect_attempts` failures in a row.
 int runStream(const Connection& connection, std::unique_ptr<ism::client::FrameSource> source,
-              const RecognitionFlags& flags, bool latest_wins, uint64_t max_frames) {
+              const RecognitionFlags& flags, bool latest_wins, uint64_t max_frames, int reconnect_attempts) {
   std::cerr << "streaming " << source->describe() << " (" << (latest_wins ? "latest frame wins" : "every frame")
             << ")\n";
-  auto stub = FurnitureRecognizer::NewStub(connection.channel());
-  grpc::ClientContext context;
-  connection.prepare(&context);
-  auto stream = stub->StreamFrames(&context);
+  std::mutex mutex;  // guards what follows, shared by the writer and the reader
+  std::map<uint64_t, SentFrame> unanswered;  // by frame id
+  uint64_t taken = 0;                        // frames taken from the source so far
+  bool source_done = false;
   std::exception_ptr source_error;
-  std::atomic<uint64_t> sent{0};
+  uint64_t received = 0, skipped = 0, failed = 0, reconnections = 0;
   const auto start = std::chrono::steady_clock::now();
+  grpc::Status status;
+  // With `mutex` held: nothing more to take from the source.
+  auto exhausted = [&] { return source_done || (max_frames > 0 && taken >= max_frames); };
 
-  std::thread writer([&] {
-    try {
+  for (int failures_in_a_row = 0;;) {
+    // A reconnection gets a channel of its own: the old one may still be backing off from the
+    // server it lost, and would fail the new call at once.
+    auto stub = FurnitureRecognizer::NewStub(connection.channel(/*own_connection=*/reconnections > 0));
+    grpc::ClientContext context;
+    connection.prepare(&context);
+    auto stream = stub->StreamFrames(&context);
+    bool answered_any = false;
+
+    std::thread writer([&] {
       ism::v1::StreamFramesRequest request;
       auto* settings = request.mutable_settings();
       settings->set_policy(latest_wins ? ism::v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS
                                        : ism::v1::BACKPRESSURE_POLICY_EVERY_FRAME);
       *settings->mutable_options() = flags.build();
-      while (max_frames == 0 || sent < max_frames) {
-        auto frame = source->next();
-        if (!frame) break;
-        request.set_frame_id(sent + 1);
-        request.set_timestamp_us(frame->timestamp_us);
-        *request.mutable_scene() = std::move(frame->scene);
-        if (!stream->Write(request)) break;  // the call is over; Finish says why
-        ++sent;
-        request.clear_settings();
+      // Never called with `mutex` held: Write waits for flow control, which waits for the reader.
+      auto send = [&](uint64_t id, const SentFrame& frame) {
+        request.set_frame_id(id);
+        request.set_timestamp_us(frame.timestamp_us);
+        *request.mutable_scene() = frame.scene;
+        const bool ok = stream->Write(request);
+        request.clear_settings();  // the first message of each stream carries them
+        return ok;
+      };
+      try {
+        std::vector<std::pair<uint64_t, SentFrame>> again;
+        {
+          std::lock_guard<std::mutex> lock(mutex);
+          again.assign(unanswered.begin(), unanswered.end());
+        }
+        bool open = true;
+        for (const auto& [id, frame] : again) {
+          if (!(open = send(id, frame))) break;  // the call is over; Finish says why
+        }
+        while (open) {
+          {
+            std::lock_guard<std::mutex> lock(mutex);
+            if (exhausted()) break;
+          }
+          auto next = source->next();
+          if (!next) {
+            std::lock_guard<std::mutex> lock(mutex);
+            source_done = true;
+            break;
+          }
+          SentFrame frame{next->timestamp_us, std::move(next->scene)};
+          uint64_t id;
+          {
+            std::lock_guard<std::mutex> lock(mutex);
+            id = ++taken;
+            unanswered[id] = frame;
+          }
+          open = send(id, frame);
+        }
+      } catch (...) {
+        std::lock_guard<std::mutex> lock(mutex);
+        source_error = std::current_exception();
+        source_done = true;
       }
-    } catch (...) {
-      source_error = std::current_exception();
-    }
-    stream->WritesDone();
-  });
+      stream->WritesDone();
+    });
 
-  ism::v1::FrameResult result;
-  uint64_t received = 0, skipped = 0, failed = 0;
-  while (stream->Read(&result)) {
-    ++received;
-    skipped += result.skipped_frame_ids_size();
-    const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    if (connection.json) {
-      std::cout << ism::client::toJson(result) << "\n";
-      continue;
-    }
-    std::cout << "frame " << result.frame_id() << ": ";
-    if (result.has_error()) {
-      ++failed;
-      std::cout << "error " << statusName(static_cast<grpc::StatusCode>(result.error().code())) << ": "
-                << result.error().message();
-    } else {
-      std::cout << result.result().hypotheses_size() << " hypotheses";
-      for (const auto& h : result.result().hypotheses()) {
-        std::cout << " [" << h.category() << " " << std::fixed << std::setprecision(2) << h.score() << " at ("
-                  << h.center().x() << ", " << h.center().y() << ", " << h.center().z() << ")]";
+    ism::v1::FrameResult result;
+    while (stream->Read(&result)) {
+      {
+        std::lock_guard<std::mutex> lock(mutex);
+        unanswered.erase(result.frame_id());
+        for (auto id : result.skipped_frame_ids()) unanswered.erase(id);
       }
-      std::cout << std::fixed << std::setprecision(1) << ", " << result.result().total_ms() << " ms";
+      answered_any = true;
+      ++received;
+      skipped += result.skipped_frame_ids_size();
+      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+      if (connection.json) {
+        std::cout << ism::client::toJson(result) << std::endl;  // a line per result as it comes, also into a pipe
+        continue;
+      }
+      std::cout << "frame " << result.frame_id() << ": ";
+      if (result.has_error()) {
+        ++failed;
+        std::cout << "error " << statusName(static_cast<grpc::StatusCode>(result.error().code())) << ": "
+                  << result.error().message();
+      } else {
+        std::cout << result.result().hypotheses_size() << " hypotheses";
+        for (const auto& h : result.result().hypotheses()) {
+          std::cout << " [" << h.category() << " " << std::fixed << std::setprecision(2) << h.score() << " at ("
+                    << h.center().x() << ", " << h.center().y() << ", " << h.center().z() << ")]";
+        }
+        std::cout << std::fixed << std::setprecision(1) << ", " << result.result().total_ms() << " ms";
+      }
+      if (result.skipped_frame_ids_size() > 0) {
+        std::cout << ", skipped";
+        for (auto id : result.skipped_frame_ids()) std::cout << " " << id;
+      }
+      std::cout << std::fixed << std::setprecision(1) << " (" << received / elapsed << " fps)" << std::endl;
     }
-    if (result.skipped_frame_ids_size() > 0) {
-      std::cout << ", skipped";
-      for (auto id : result.skipped_frame_ids()) std::cout << " " << id;
+    writer.join();
+    status = stream->Finish();
+
+    std::unique_lock<std::mutex> lock(mutex);
+    if (status.error_code() != grpc::StatusCode::UNAVAILABLE || source_error) break;
+    if (exhausted() && unanswered.empty()) {
+      status = grpc::Status::OK;  // broke after the last answer: nothing is missing
+      break;
     }
-    std::cout << std::fixed << std::setprecision(1) << " (" << received / elapsed << " fps)\n";
+    if (answered_any) failures_in_a_row = 0;
+    if (++failures_in_a_row > reconnect_attempts) {
+      status = grpc::Status(status.error_code(),
+                            status.error_message() + " (gave up after " + std::to_string(reconnect_attempts) +
+                                " reconnection attempts; " + std::to_string(unanswered.size()) +
+                                " frames sent were not answered)");
+      break;
+    }
+    auto delay = kFirstReconnectDelay * (1 << std::min(failures_in_a_row - 1, 10));
+    if (delay > kMaxReconnectDelay) delay = std::chrono::duration_cast<std::chrono::milliseconds>(kMaxReconnectDelay);
+    std::cerr << "stream broke: " << statusName(status.error_code()) << ": " << status.error_message() << "; "
+              << unanswered.size() << " frames unanswered; reconnecting in " << std::fixed << std::setprecision(2)
+              << std::chrono::duration<double>(delay).count() << " s (attempt " << failures_in_a_row << " of "
+              << reconnect_attempts << ")\n";
+    lock.unlock();
+    std::this_thread::sleep_for(delay);
+    ++reconnections;
   }
-  writer.join();
-  const grpc::Status status = stream->Finish();
+
   const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::cerr << sent << " frames sent, " << received << " results (" << failed << " failed), " << skipped
-            << " skipped, " << std::fixed << std::setprecision(2) << received / elapsed << " results/s over "
-            << elapsed << " s\n";
+  std::cerr << taken << " frames sent, " << received << " results (" << failed << " failed), " << skipped
+            << " skipped, " << reconnections << " reconnections, " << std::fixed << std::setprecision(2)
+            << received / elapsed << " results/s over " << elapsed << " s\n";
   if (!status.ok()) return fail("stream", status);
   if (source_error) {
     try {
@@ -253,6 +339,13 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"every", "latest"}))
       ->capture_default_str();
   stream->add_option("--max-frames", max_frames, "stop after this many frames (0: all)");
+  int reconnect_attempts = 6;
+  stream->add_option("--reconnect-attempts", reconnect_attempts,
+                     "when the stream breaks with UNAVAILABLE (server restarted or gone), reconnect up to this many "
+                     "times in a row, waiting 0.25 s, 0.5 s, ... up to 8 s between attempts, and resend the frames "
+                     "not answered yet (0: give up at once)")
+      ->check(CLI::Range(0, 1000))
+      ->capture_default_str();
   RecognitionFlags stream_flags;
   stream_flags.add(stream);
 
@@ -290,7 +383,8 @@ int main(int argc, char** argv) {
       }
       auto source = folder.empty() ? ism::client::openOpenNi(device)
                                    : ism::client::openPngFolder(folder, stream_flags.intrinsics);
-      return runStream(connection, std::move(source), stream_flags, policy == "latest", max_frames);
+      return runStream(connection, std::move(source), stream_flags, policy == "latest", max_frames,
+                       reconnect_attempts);
     }
     if (models->parsed()) return runModels(connection, show->parsed() ? show_name : "");
     if (health->parsed()) return runHealth(connection);

@@ -8,6 +8,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -128,22 +129,24 @@ std::string tinyModelDirectory() {
 }
 
 ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags,
-                             std::shared_ptr<grpc::ChannelCredentials> credentials)
+                             std::shared_ptr<grpc::ChannelCredentials> credentials, int port)
     : credentials_(credentials ? std::move(credentials) : grpc::InsecureChannelCredentials()) {
   const std::string models = tinyModelDirectory();
-  port_ = freePort();
+  port_ = port > 0 ? port : freePort();
   metrics_port_ = freePort();
   std::vector<std::string> args{ISM_SERVER_BINARY,
                                 "--listen",
                                 address(),
                                 "--metrics-listen",
                                 "127.0.0.1:" + std::to_string(metrics_port_),
-                                "--models",
-                                models,
                                 "--threads",
                                 "2",
                                 "--log-level",
                                 "warn"};
+  // A test may serve models of its own (the flag may be given once).
+  if (std::find(extra_flags.begin(), extra_flags.end(), "--models") == extra_flags.end()) {
+    args.insert(args.end(), {"--models", models});
+  }
   args.insert(args.end(), extra_flags.begin(), extra_flags.end());
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
@@ -173,10 +176,13 @@ ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags,
   throw std::runtime_error("ism-server did not become healthy within 30 s");
 }
 
-ServerProcess::~ServerProcess() {
+ServerProcess::~ServerProcess() { kill(); }
+
+void ServerProcess::kill() {
   if (pid_ > 0) {
-    kill(pid_, SIGKILL);
+    ::kill(pid_, SIGKILL);
     waitpid(pid_, nullptr, 0);
+    pid_ = -1;
   }
 }
 
@@ -189,7 +195,7 @@ std::shared_ptr<grpc::Channel> ServerProcess::channel(
 }
 
 int ServerProcess::terminate(std::chrono::seconds timeout) {
-  kill(pid_, SIGTERM);
+  ::kill(pid_, SIGTERM);
   const auto give_up = std::chrono::steady_clock::now() + timeout;
   while (std::chrono::steady_clock::now() < give_up) {
     int status = 0;

@@ -21,21 +21,27 @@ std::string tinyModelDirectory();
 // A running ism-server. The destructor kills it (SIGKILL) if the test did not stop it.
 class ServerProcess {
  public:
-  // Extra flags are appended (e.g. "--max-points", "5000"). Waits for health SERVING, asked over
-  // `credentials` (plain text when null; TLS servers need SslCredentials).
+  // Extra flags are appended (e.g. "--max-points", "5000"; "--models" replaces the tiny model's).
+  // Waits for health SERVING, asked over `credentials` (plain text when null; TLS servers need
+  // SslCredentials). `port` 0 picks a free one; a restarted server takes its predecessor's so
+  // that clients find it again.
   explicit ServerProcess(const std::vector<std::string>& extra_flags = {},
-                         std::shared_ptr<grpc::ChannelCredentials> credentials = nullptr);
+                         std::shared_ptr<grpc::ChannelCredentials> credentials = nullptr, int port = 0);
   ~ServerProcess();
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
 
   std::string address() const { return "127.0.0.1:" + std::to_string(port_); }
+  int port() const { return port_; }
+  pid_t pid() const { return pid_; }
   int metricsPort() const { return metrics_port_; }
   std::shared_ptr<grpc::Channel> channel() const { return channel(credentials_); }
   // A channel with its own subchannels: one test's failed handshake never leaks into another's.
   std::shared_ptr<grpc::Channel> channel(const std::shared_ptr<grpc::ChannelCredentials>& credentials) const;
   // SIGTERM, then the exit code (-1 when it did not exit within `timeout` or died of a signal).
   int terminate(std::chrono::seconds timeout = std::chrono::seconds(30));
+  // SIGKILL: a crash, with no draining.
+  void kill();
   // The body of GET /metrics.
   std::string metrics() const;
 
