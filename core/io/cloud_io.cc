@@ -146,28 +146,52 @@ void requireReadableFile(const std::string& path) {
   }
 }
 
-// PCL 1.13's PLYReader aborts the process (assert) on a vertex element with some but not all of
-// red, green and blue (found by tests/fuzz), so the header's vertex properties are checked first.
-void requireCompletePlyColor(const std::string& path) {
+// PCL 1.13's PLYReader aborts the process (assert) on a header line that starts with a blank or
+// holds a control character, on a vertex element with some but not all of red, green and blue,
+// with a colour channel other than uchar or with a list property, and it allocates the header's
+// vertex count before reading a vertex, gigabytes for a 100-byte file (all found by tests/fuzz):
+// the header is checked first. Every vertex takes at least a byte of the file.
+void requireSupportedPlyHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
+  const auto file_size = static_cast<long long>(std::filesystem::file_size(path));
   std::string line;
   bool in_vertex = false;
   int colors = 0;
   for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const auto control = std::find_if(line.begin(), line.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; });
+    if (control != line.end() || (!line.empty() && line[0] == ' ')) {
+      throw Error(ErrorCode::kInvalidInput, path + ": PLY header line " + std::to_string(n + 1) +
+                                                " starts with a blank or holds a control character");
+    }
     std::istringstream words(line);
     std::string word;
     words >> word;
     if (word == "end_header") break;
     if (word == "element") {
-      std::string name;
-      words >> name;
+      std::string name, count_text;
+      words >> name >> count_text;
       in_vertex = name == "vertex";
+      long long count = -1;
+      if (!(std::istringstream(count_text) >> count)) count = -1;
+      if (in_vertex && (count < 0 || count > file_size)) {
+        throw Error(ErrorCode::kInvalidInput, path + ": vertex count '" + count_text + "' does not fit a file of " +
+                                                  std::to_string(file_size) + " bytes");
+      }
     } else if (word == "property" && in_vertex) {
       std::string type, name;
       words >> type;
-      if (type == "list") words >> type >> type;
+      if (type == "list") {
+        throw Error(ErrorCode::kInvalidInput, path + ": the vertex element has a list property; only scalar "
+                                                    "vertex properties (x, y, z, red, green, blue...) are supported");
+      }
       words >> name;
-      if (name == "red" || name == "green" || name == "blue") ++colors;
+      const bool color = name == "red" || name == "green" || name == "blue";
+      if ((color || name == "alpha") && type != "uchar" && type != "uint8") {
+        throw Error(ErrorCode::kInvalidInput, path + ": vertex property " + name + " is " + type +
+                                                  "; colour channels must be uchar");
+      }
+      if (color) ++colors;
     }
   }
   if (colors != 0 && colors != 3) {
@@ -188,6 +212,21 @@ void readPcd(const std::string& path, pcl::PCLPointCloud2& blob, Eigen::Vector4f
   }
   if (blob.fields.empty() || static_cast<size_t>(blob.width) * blob.height == 0 || data_start == 0) {
     throw Error(ErrorCode::kInvalidInput, path + ": not a PCD file (header lacks FIELDS, POINTS or DATA)");
+  }
+  // PCL 1.13 takes a binary_compressed body's own uncompressed size and then unpacks the header's
+  // points from it: a smaller one reads past its buffer (found by tests/fuzz).
+  if (data_type == 2) {
+    std::ifstream in(path, std::ios::binary);
+    uint32_t sizes[2] = {0, 0};  // compressed, uncompressed; little-endian as PCL writes them
+    if (!in.seekg(data_start) || !in.read(reinterpret_cast<char*>(sizes), sizeof sizes)) {
+      throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (binary_compressed body is truncated)");
+    }
+    const uint64_t needed = static_cast<uint64_t>(blob.point_step) * blob.width * blob.height;
+    if (sizes[1] != needed) {
+      throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (compressed body unpacks to " +
+                                                std::to_string(sizes[1]) + " bytes, the header's points need " +
+                                                std::to_string(needed) + ")");
+    }
   }
   if (reader.read(path, blob, origin, orientation, version) < 0) {
     throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (data is truncated or corrupt)");
@@ -264,7 +303,7 @@ Scene loadCloudFile(const std::string& path) {
     if (ext == ".pcd") {
       readPcd(path, blob, origin, orientation);
     } else {
-      requireCompletePlyColor(path);
+      requireSupportedPlyHeader(path);
       int version = 0;
       if (pcl::PLYReader().read(path, blob, origin, orientation, version) < 0) {
         throw Error(ErrorCode::kInvalidInput, path + ": malformed PLY file (header or data cannot be parsed)");

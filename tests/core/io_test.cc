@@ -178,7 +178,9 @@ TEST_F(IoTest, UnreadableFilesNameTheFile) {
 }
 
 // Inputs tests/fuzz found crashing the readers (an escaping std::out_of_range from PCL, a read
-// past the point data, PCL's assert on incomplete PLY colour): each is now a named error.
+// past the point data, PCL's asserts on incomplete or non-uchar PLY colour, on a vertex list
+// property and on a header line starting with a blank, a compressed body smaller than the header's points,
+// gigabytes allocated for a PLY's stated vertex count): each is now a named error.
 TEST_F(IoTest, FuzzFindingsAreRefusedWithAnError) {
   writeFileBytes(path("only_data.pcd"), "DATA");
   expectError([&] { loadCloudFile(path("only_data.pcd")); }, ErrorCode::kInvalidInput, path("only_data.pcd"));
@@ -188,6 +190,33 @@ TEST_F(IoTest, FuzzFindingsAreRefusedWithAnError) {
   writeFileBytes(path("blue.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
                                    "property float z\nproperty uchar blue\nend_header\n1 2 3 4\n");
   expectError([&] { loadCloudFile(path("blue.ply")); }, ErrorCode::kInvalidInput, "red, green and blue");
+  writeFileBytes(path("vertex_list.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                                          "property float y\nproperty float z\nproperty list uchar int ids\n"
+                                          "end_header\n1 2 3 2 7 8\n");
+  expectError([&] { loadCloudFile(path("vertex_list.ply")); }, ErrorCode::kInvalidInput, "list property");
+  writeFileBytes(path("char_red.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                                       "property float y\nproperty float z\nproperty char red\nproperty uchar green\n"
+                                       "property uchar blue\nend_header\n1 2 3 4 5 6\n");
+  expectError([&] { loadCloudFile(path("char_red.ply")); }, ErrorCode::kInvalidInput, "red is char");
+  writeFileBytes(path("obj_info.ply"), "ply\n\vobj_info x\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                                       "property float y\nproperty float z\nend_header\n1 2 3\n");
+  expectError([&] { loadCloudFile(path("obj_info.ply")); }, ErrorCode::kInvalidInput, "line 2 starts with a blank");
+  for (const char* count : {"-2", "4000000000", "x"}) {
+    writeFileBytes(path("count.ply"), std::string("ply\nformat binary_little_endian 1.0\nelement vertex ") + count +
+                                          "\nproperty float x\nproperty float y\nproperty float z\nend_header\n");
+    expectError([&] { loadCloudFile(path("count.ply")); }, ErrorCode::kInvalidInput,
+                std::string("vertex count '") + count + "' does not fit a file of");
+  }
+  // COUNT 2 makes x 8 bytes: 6 points need 96 bytes, the body unpacks to 72 (6 x 12). The LZF
+  // stream is three literal runs (a control byte of length - 1, then the bytes): 32 + 32 + 8.
+  std::string compressed = "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 2 1 1\nWIDTH 6\nHEIGHT 1\n"
+                           "POINTS 6\nDATA binary_compressed\n";
+  const uint32_t body_sizes[2] = {75, 72};
+  compressed.append(reinterpret_cast<const char*>(body_sizes), sizeof body_sizes);
+  for (int run : {32, 32, 8}) compressed.append(1, static_cast<char>(run - 1)).append(run, '\0');
+  writeFileBytes(path("compressed.pcd"), compressed);
+  expectError([&] { loadCloudFile(path("compressed.pcd")); }, ErrorCode::kInvalidInput,
+              "compressed body unpacks to 72 bytes, the header's points need 96");
 }
 
 TEST_F(IoTest, CloudWithoutFiniteOrCoordinateFieldsIsRejected) {
