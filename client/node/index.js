@@ -3,6 +3,7 @@
 // .proto files at run time, so this client can never drift from the server's proto/.
 // Results are plain objects with the proto's fields in lowerCamelCase; enums are their names
 // and 64-bit integers are Numbers.
+const fs = require('node:fs');
 const path = require('node:path');
 const os = require('node:os');
 const grpc = require('@grpc/grpc-js');
@@ -108,21 +109,68 @@ function recognitionOptions(o = {}) {
   return options;
 }
 
+function readPem(file, what) {
+  let data;
+  try {
+    data = fs.readFileSync(file);
+  } catch (e) {
+    throw new Error(`${what} ${file}: ${e.code === 'ENOENT' ? 'no such file' : e.message}`);
+  }
+  if (!data.includes('-----BEGIN ')) throw new Error(`${what} ${file}: not a PEM file (no '-----BEGIN' line)`);
+  return data;
+}
+
+// Channel credentials as ism-client's flags: tlsCa (PEM file) trusts that CA instead of the
+// system's and implies TLS; tlsCert + tlsKey (PEM files) present a client certificate (mTLS).
+// Files are read here, so that a missing one is named now rather than failing a handshake later.
+function tlsCredentials({ tlsCa, tlsCert, tlsKey } = {}) {
+  if (!tlsCert !== !tlsKey) {
+    throw new TypeError('a client certificate needs its key and a key its certificate: give both tlsCert and tlsKey, or neither');
+  }
+  return grpc.credentials.createSsl(tlsCa ? readPem(tlsCa, 'TLS CA') : null, tlsKey ? readPem(tlsKey, 'TLS key') : null,
+    tlsCert ? readPem(tlsCert, 'TLS certificate') : null);
+}
+
+// Per-call metadata rather than call credentials: gRPC sends those only over TLS, and a token
+// over plain text is legitimate on loopback or behind a TLS-terminating proxy (as ism-client).
+function tokenMetadata(token) {
+  const metadata = new grpc.Metadata();
+  if (token == null || token === '') return metadata;
+  const trimmed = String(token).trim(); // as the server trims its token files
+  if (!/^[\x21-\x7e]+$/.test(trimmed)) {
+    throw new TypeError("token must be printable ASCII without blanks (it travels as 'authorization: Bearer TOKEN')");
+  }
+  metadata.set('authorization', `Bearer ${trimmed}`);
+  return metadata;
+}
+
 class Client {
   // address: any gRPC target ("host:port", "ipv4:a:p1,b:p2", "dns:///svc:50051").
   // timeoutMs: each unary call's deadline. serviceConfig: an object such as
   // { loadBalancingConfig: [{ round_robin: {} }], methodConfig: [...] }.
-  constructor(address, { timeoutMs = 30000, maxMessageMb = 64, serviceConfig, protoDirs = DEFAULT_PROTO_DIRS } = {}) {
+  // Security: tls (true: TLS trusting the system's CAs), tlsCa, tlsCert + tlsKey (PEM file
+  // paths; any of them implies TLS), tlsServerName (the name the server certificate is checked
+  // against; default: the host of address), token (sent as 'authorization: Bearer TOKEN').
+  constructor(address, {
+    timeoutMs = 30000, maxMessageMb = 64, serviceConfig, protoDirs = DEFAULT_PROTO_DIRS,
+    tls = false, tlsCa, tlsCert, tlsKey, tlsServerName, token,
+  } = {}) {
     const pkg = loadProtos(protoDirs);
     const options = {
       'grpc.max_receive_message_length': maxMessageMb << 20,
       'grpc.max_send_message_length': maxMessageMb << 20,
     };
     if (serviceConfig) options['grpc.service_config'] = JSON.stringify(serviceConfig);
+    let credentials = grpc.credentials.createInsecure();
+    if (tls || tlsCa || tlsCert || tlsKey || tlsServerName) {
+      credentials = tlsCredentials({ tlsCa, tlsCert, tlsKey });
+      if (tlsServerName) options['grpc.ssl_target_name_override'] = tlsServerName;
+    }
     this.address = address;
     this.timeoutMs = timeoutMs;
-    this.stub = new pkg.ism.v1.FurnitureRecognizer(address, grpc.credentials.createInsecure(), options);
-    this.healthStub = new pkg.grpc.health.v1.Health(address, grpc.credentials.createInsecure(), options);
+    this.metadata = tokenMetadata(token);
+    this.stub = new pkg.ism.v1.FurnitureRecognizer(address, credentials, options);
+    this.healthStub = new pkg.grpc.health.v1.Health(address, credentials, options);
   }
 
   close() {
@@ -133,7 +181,8 @@ class Client {
   unary(stub, method, request, timeoutMs) {
     const deadline = new Date(Date.now() + (timeoutMs ?? this.timeoutMs));
     return new Promise((resolve, reject) => {
-      stub[method](request, { deadline }, (err, response) => (err ? reject(toIsmError(err)) : resolve(response)));
+      stub[method](request, this.metadata.clone(), { deadline },
+        (err, response) => (err ? reject(toIsmError(err)) : resolve(response)));
     });
   }
 
@@ -158,7 +207,7 @@ class Client {
   // policy: 'every_frame' (flow control slows the sender) or 'latest_frame_wins'.
   async* streamFrames(frames, { policy = 'every_frame', ...options } = {}) {
     if (!POLICIES[policy]) throw new RangeError(`unknown policy '${policy}': one of ${Object.keys(POLICIES).join(', ')}`);
-    const call = this.stub.streamFrames();
+    const call = this.stub.streamFrames(this.metadata.clone());
     const settings = { policy: POLICIES[policy], options: recognitionOptions(options) };
     let sendError = null;
     const send = (async () => {
@@ -203,4 +252,4 @@ class Client {
 
 const connect = (address, options) => new Client(address, options);
 
-module.exports = { Client, IsmError, KINECT, cloudScene, connect, depthScene, recognitionOptions };
+module.exports = { Client, IsmError, KINECT, cloudScene, connect, depthScene, recognitionOptions, tlsCredentials };

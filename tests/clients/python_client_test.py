@@ -1,7 +1,7 @@
 """The Python client (client/python) against a real ism-server on 127.0.0.1.
 
 Run by ctest (tests/clients/CMakeLists.txt), which sets ISM_SERVER_BIN, ISM_TEST_MODEL_DIR,
-ISM_PY_STUBS and PYTHONPATH."""
+ISM_PY_STUBS and PYTHONPATH. The security tests make their certificates with openssl."""
 import json
 import os
 import subprocess
@@ -12,6 +12,7 @@ import unittest
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import certs  # noqa: E402
 import ism_client  # noqa: E402
 import scenes  # noqa: E402
 from server_process import ServerProcess  # noqa: E402
@@ -178,6 +179,120 @@ class ClientAgainstServerTest(unittest.TestCase):
         unknown = self.run_cli("models", "no-such-model")
         self.assertEqual(unknown.returncode, 1)
         self.assertIn("NOT_FOUND", unknown.stderr)
+
+
+class SecuredServerTest(unittest.TestCase):
+    """TLS, mTLS and bearer tokens against servers started with ism-server's security flags."""
+
+    @classmethod
+    def setUpClass(cls):
+        cls.tmp = tempfile.TemporaryDirectory()
+        cls.pki = certs.Pki(cls.tmp.name)
+        cls.server = ServerProcess(extra_args=cls.pki.server_flags()).start()
+        cls.points = scenes.box_on_floor()[::4]
+
+    @classmethod
+    def tearDownClass(cls):
+        cls.server.stop()
+        cls.tmp.cleanup()
+
+    def connect(self, server=None, **kwargs):
+        client = ism_client.connect((server or self.server).address, timeout=30, **kwargs)
+        self.addCleanup(client.close)
+        return client
+
+    def assert_fails(self, code: str, call, *args, message=""):
+        with self.assertRaises(ism_client.IsmError) as caught:
+            call(*args)
+        self.assertEqual(caught.exception.code.name, code, caught.exception.message)
+        self.assertIn(message, caught.exception.message)
+        return caught.exception
+
+    def test_no_token_is_unauthenticated_and_health_stays_open(self):
+        client = self.connect(tls_ca=self.pki.path("ca.crt"))
+        self.assertEqual(client.health(), "SERVING")
+        self.assert_fails("UNAUTHENTICATED", client.recognize_cloud, self.points, message="authorization: Bearer")
+        self.assert_fails("UNAUTHENTICATED", client.list_models)
+        with self.assertRaises(ism_client.IsmError) as caught:
+            list(client.stream_frames([ism_client.Frame(points=self.points)]))
+        self.assertEqual(caught.exception.code.name, "UNAUTHENTICATED")
+
+    def test_wrong_token_is_unauthenticated(self):
+        client = self.connect(tls_ca=self.pki.path("ca.crt"), token="not-a-token-of-this-server")
+        self.assert_fails("UNAUTHENTICATED", client.list_models, message="not accepted")
+
+    def test_right_token_gets_results_on_every_rpc(self):
+        for token in (certs.USER_TOKEN, certs.ADMIN_TOKEN + "\n"):  # a token read from a file keeps its newline
+            with self.subTest(token=token.strip()[:5]):
+                client = self.connect(tls_ca=self.pki.path("ca.crt"), token=token)
+                models = client.list_models()
+                self.assertTrue(models, self.server.log())
+                self.assertEqual(client.get_model(models[0].name).name, models[0].name)
+                result = client.recognize_cloud(self.points)
+                self.assertEqual(result.input_points, len(self.points))
+                self.assertEqual(result.model_name, models[0].name)
+                frames = list(client.stream_frames([ism_client.Frame(points=self.points, frame_id=7)]))
+                self.assertEqual([(r.frame_id, r.WhichOneof("outcome")) for r in frames], [(7, "result")])
+
+    def test_wrong_ca_fails_the_handshake(self):
+        client = self.connect(tls_ca=self.pki.path("rogue-ca.crt"), token=certs.USER_TOKEN)
+        for call in (client.health, client.list_models):
+            with self.subTest(call=call.__name__):
+                self.assert_fails("UNAVAILABLE", call, message="certificate verify failed")
+
+    def test_plain_text_to_a_tls_server_fails(self):
+        self.assert_fails("UNAVAILABLE", self.connect(token=certs.USER_TOKEN).health)
+
+    def test_server_name_is_checked_and_can_be_overridden(self):
+        with ServerProcess(extra_args=self.pki.server_flags("named-server")) as named:
+            # The certificate names only "ism-server", not the 127.0.0.1 dialled.
+            self.assert_fails("UNAVAILABLE", self.connect(named, tls_ca=self.pki.path("ca.crt")).health)
+            client = self.connect(named, tls_ca=self.pki.path("ca.crt"), tls_server_name="ism-server",
+                                  token=certs.USER_TOKEN)
+            self.assertEqual(client.health(), "SERVING")
+            self.assertTrue(client.list_models())
+
+    def test_mutual_tls_needs_a_client_certificate_from_the_client_ca(self):
+        with ServerProcess(extra_args=self.pki.server_flags(client_ca="ca")) as mtls:
+            ca = self.pki.path("ca.crt")
+            accepted = self.connect(mtls, tls_ca=ca, tls_cert=self.pki.path("client.crt"),
+                                    tls_key=self.pki.path("client.key"), token=certs.USER_TOKEN)
+            self.assertTrue(accepted.list_models())
+            self.assert_fails("UNAVAILABLE", self.connect(mtls, tls_ca=ca, token=certs.USER_TOKEN).health)
+            rogue = self.connect(mtls, tls_ca=ca, tls_cert=self.pki.path("rogue-client.crt"),
+                                 tls_key=self.pki.path("rogue-client.key"), token=certs.USER_TOKEN)
+            self.assert_fails("UNAVAILABLE", rogue.health)
+
+    def test_bad_security_options_are_refused_before_connecting(self):
+        with self.assertRaisesRegex(ValueError, "give both tls_cert and tls_key"):
+            ism_client.connect(self.server.address, tls_cert=self.pki.path("client.crt"))
+        with self.assertRaisesRegex(OSError, "TLS CA .*missing.crt"):
+            ism_client.connect(self.server.address, tls_ca=self.pki.path("missing.crt"))
+        with self.assertRaisesRegex(ValueError, "tokens: not a PEM file"):
+            ism_client.connect(self.server.address, tls_ca=self.pki.path("tokens"))
+        with self.assertRaisesRegex(ValueError, "printable ASCII"):
+            ism_client.connect(self.server.address, token="two words")
+
+    def run_cli(self, *args, **env):
+        return subprocess.run([sys.executable, "-m", "ism_client", "--server", self.server.address, *args],
+                              env=dict(os.environ, **env), capture_output=True, text=True, timeout=120)
+
+    def test_command_line_takes_the_ca_and_the_token_from_flags_or_environment(self):
+        ca = self.pki.path("ca.crt")
+        models = self.run_cli("--tls-ca", ca, "models", ISM_TOKEN=certs.USER_TOKEN)
+        self.assertEqual(models.returncode, 0, models.stderr)
+        self.assertIn("@", models.stdout)
+        by_flag = self.run_cli("--token", certs.USER_TOKEN, "models", ISM_TLS_CA=ca)
+        self.assertEqual((by_flag.returncode, by_flag.stdout), (0, models.stdout), by_flag.stderr)
+        without = self.run_cli("--tls-ca", ca, "models")
+        self.assertEqual(without.returncode, 1)
+        self.assertIn("UNAUTHENTICATED", without.stderr)
+        rogue = self.run_cli("--tls-ca", self.pki.path("rogue-ca.crt"), "models", ISM_TOKEN=certs.USER_TOKEN)
+        self.assertEqual(rogue.returncode, 1)
+        self.assertIn("UNAVAILABLE", rogue.stderr)
+        half = self.run_cli("--tls-ca", ca, "--tls-cert", self.pki.path("client.crt"), "health")
+        self.assertEqual(half.returncode, 2)
+        self.assertIn("--tls-key", half.stderr)
 
 
 if __name__ == "__main__":

@@ -1,7 +1,9 @@
-"""Command line: python3 -m ism_client [--server HOST:PORT] recognize FILE.pcd|DEPTH.png | models [NAME] | health
+"""Command line: python3 -m ism_client [--server HOST:PORT] [--tls-ca CA.crt [--tls-cert C.crt --tls-key C.key]]
+    recognize FILE.pcd|DEPTH.png | models [NAME] | health
 
-Exit status: 0 on success, 1 when the server answered an error (or health is not SERVING),
-2 for bad arguments or unreadable files."""
+The token for a server started with --token-file comes from ISM_TOKEN (or --token, which shows
+in ps). Exit status: 0 on success, 1 when the server answered an error (or health is not
+SERVING; a failed TLS handshake is UNAVAILABLE), 2 for bad arguments or unreadable files."""
 import argparse
 import os
 import sys
@@ -45,6 +47,17 @@ def main(argv=None) -> int:
                     help="gRPC target (default: $ISM_SERVER or 127.0.0.1:50051)")
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds per call")
     ap.add_argument("--json", action="store_true", help="print the full response as JSON")
+    ap.add_argument("--tls", action="store_true",
+                    help="connect with TLS, trusting the system's CAs (implied by the --tls-* options)")
+    ap.add_argument("--tls-ca", default=os.environ.get("ISM_TLS_CA") or None,
+                    help="PEM CA certificates to trust instead of the system's (default: $ISM_TLS_CA)")
+    ap.add_argument("--tls-cert", help="PEM client certificate, for servers that require one (mTLS); needs --tls-key")
+    ap.add_argument("--tls-key", help="PEM private key of --tls-cert")
+    ap.add_argument("--tls-server-name",
+                    help="name to check the server certificate against (default: the host of --server)")
+    ap.add_argument("--token", default=os.environ.get("ISM_TOKEN") or None,
+                    help="bearer token sent as 'authorization: Bearer TOKEN' (default: $ISM_TOKEN; prefer it: "
+                         "arguments show in ps)")
     sub = ap.add_subparsers(dest="command", required=True)
     rec = sub.add_parser("recognize", help="recognize furniture in a .pcd cloud or a 16-bit .png depth image")
     rec.add_argument("file")
@@ -59,9 +72,12 @@ def main(argv=None) -> int:
     models.add_argument("name", nargs="?")
     sub.add_parser("health", help="grpc.health.v1 check; exit 0 only when SERVING")
     args = ap.parse_args(argv)
+    if bool(args.tls_cert) != bool(args.tls_key):
+        ap.error("--tls-cert and --tls-key go together")
 
     try:
-        with connect(args.server, timeout=args.timeout) as client:
+        with connect(args.server, timeout=args.timeout, tls=args.tls, tls_ca=args.tls_ca, tls_cert=args.tls_cert,
+                     tls_key=args.tls_key, tls_server_name=args.tls_server_name, token=args.token) as client:
             if args.command == "health":
                 status = client.health()
                 print(status)

@@ -143,13 +143,57 @@ def _translate_errors(fn):
     return wrapper
 
 
+def _read_pem(path: str, what: str) -> bytes:
+    try:
+        with open(path, "rb") as f:
+            data = f.read()
+    except OSError as e:
+        raise OSError(f"{what} {path}: {e.strerror or e}") from None
+    if b"-----BEGIN " not in data:
+        raise ValueError(f"{what} {path}: not a PEM file (no '-----BEGIN' line)")
+    return data
+
+
+def tls_credentials(ca: Optional[str] = None, cert: Optional[str] = None, key: Optional[str] = None):
+    """grpc.ChannelCredentials trusting the PEM CA file `ca` (None: the system's CAs), presenting
+    the PEM client certificate `cert` with its `key` when given (mTLS). Files are read now, so
+    that a missing one is reported here, naming it, rather than as a failed handshake later."""
+    if bool(cert) != bool(key):
+        raise ValueError("a client certificate needs its key and a key its certificate: give both tls_cert "
+                         "and tls_key, or neither")
+    return grpc.ssl_channel_credentials(
+        root_certificates=_read_pem(ca, "TLS CA") if ca else None,
+        private_key=_read_pem(key, "TLS key") if key else None,
+        certificate_chain=_read_pem(cert, "TLS certificate") if cert else None)
+
+
+# Per-call metadata rather than grpc.metadata_call_credentials: gRPC sends call credentials
+# only over TLS, and a token over plain text is legitimate on loopback or behind a
+# TLS-terminating proxy (ism-client does the same).
+def _token_metadata(token: Optional[str]):
+    if token is None or token == "":
+        return None
+    token = token.strip()  # as the server trims its token files: a token read with its newline still works
+    if not token or any(ord(c) < 0x21 or ord(c) > 0x7e for c in token):
+        raise ValueError("token must be printable ASCII without blanks (it travels as 'authorization: Bearer TOKEN')")
+    return (("authorization", f"Bearer {token}"),)
+
+
 class Client:
     """A connection to ism-server. `address` is any gRPC target: "host:port", or
     "ipv4:10.0.0.1:50051,10.0.0.2:50051" / "dns:///ism-server:50051" with a `service_config`
-    that load-balances over several replicas. `timeout` is each call's deadline in seconds."""
+    that load-balances over several replicas. `timeout` is each call's deadline in seconds.
+
+    Security, as ism-client's flags: `tls=True` trusts the system's CAs; `tls_ca` (a PEM file)
+    trusts that CA instead and implies TLS; `tls_cert` + `tls_key` (PEM files) present a client
+    certificate to a server that requires one (mTLS); `tls_server_name` is the name the server
+    certificate is checked against (default: the host of `address`). `token` is sent with every
+    call as the metadata 'authorization: Bearer TOKEN'."""
 
     def __init__(self, address: str, *, timeout: Optional[float] = 30.0, max_message_mb: int = 64,
-                 service_config: Optional[dict] = None, channel_options: Sequence = ()):
+                 service_config: Optional[dict] = None, channel_options: Sequence = (), tls: bool = False,
+                 tls_ca: Optional[str] = None, tls_cert: Optional[str] = None, tls_key: Optional[str] = None,
+                 tls_server_name: Optional[str] = None, token: Optional[str] = None):
         options = [("grpc.max_receive_message_length", max_message_mb << 20),
                    ("grpc.max_send_message_length", max_message_mb << 20), *channel_options]
         if service_config is not None:
@@ -158,7 +202,13 @@ class Client:
             options.append(("grpc.enable_retries", 1))
         self.address = address
         self.timeout = timeout
-        self._channel = grpc.insecure_channel(address, options=options)
+        self._metadata = _token_metadata(token)
+        if tls or tls_ca or tls_cert or tls_key or tls_server_name:
+            if tls_server_name:
+                options.append(("grpc.ssl_target_name_override", tls_server_name))
+            self._channel = grpc.secure_channel(address, tls_credentials(tls_ca, tls_cert, tls_key), options=options)
+        else:
+            self._channel = grpc.insecure_channel(address, options=options)
         self._stub = service_pb2_grpc.FurnitureRecognizerStub(self._channel)
         self._health = health_pb2_grpc.HealthStub(self._channel)
 
@@ -179,7 +229,7 @@ class Client:
         """Runs one ism.v1.Scene; returns ism.v1.RecognitionResult."""
         request = service_pb2.RecognizeRequest(request_id=request_id, scene=scene,
                                                options=options or service_pb2.RecognitionOptions())
-        return self._stub.Recognize(request, timeout=self._deadline(timeout)).result
+        return self._stub.Recognize(request, timeout=self._deadline(timeout), metadata=self._metadata).result
 
     def recognize_cloud(self, points, rgb=None, *, width: int = 0, height: int = 0, request_id: str = "",
                         timeout: Optional[float] = None, **options):
@@ -223,7 +273,7 @@ class Client:
                 raise
 
         try:
-            yield from self._stub.StreamFrames(requests(), timeout=timeout)
+            yield from self._stub.StreamFrames(requests(), timeout=timeout, metadata=self._metadata)
         except grpc.RpcError as e:
             if bad_frame:
                 raise bad_frame[0] from None
@@ -232,17 +282,19 @@ class Client:
     @_translate_errors
     def list_models(self, *, timeout: Optional[float] = None):
         """Every loaded model, as a list of ism.v1.ModelInfo."""
-        return list(self._stub.ListModels(service_pb2.ListModelsRequest(), timeout=self._deadline(timeout)).models)
+        return list(self._stub.ListModels(service_pb2.ListModelsRequest(), timeout=self._deadline(timeout),
+                                           metadata=self._metadata).models)
 
     @_translate_errors
     def get_model(self, name: str, *, timeout: Optional[float] = None):
-        return self._stub.GetModel(service_pb2.GetModelRequest(name=name), timeout=self._deadline(timeout))
+        return self._stub.GetModel(service_pb2.GetModelRequest(name=name), timeout=self._deadline(timeout),
+                                  metadata=self._metadata)
 
     @_translate_errors
     def health(self, service: str = "", *, timeout: Optional[float] = None) -> str:
         """grpc.health.v1 status of the server ("" = overall): 'SERVING', 'NOT_SERVING', ..."""
         response = self._health.Check(health_pb2.HealthCheckRequest(service=service),
-                                      timeout=self._deadline(timeout))
+                                      timeout=self._deadline(timeout), metadata=self._metadata)
         return health_pb2.HealthCheckResponse.ServingStatus.Name(response.status)
 
 

@@ -1,12 +1,13 @@
 'use strict';
 // The Node client (client/node) against a real ism-server on 127.0.0.1; run by ctest with
-// ISM_SERVER_BIN and ISM_TEST_MODEL_DIR set.
+// ISM_SERVER_BIN and ISM_TEST_MODEL_DIR set; the security tests make their certificates with openssl.
 const test = require('node:test');
 const assert = require('node:assert/strict');
 const zlib = require('node:zlib');
 const path = require('node:path');
 const { connect, IsmError } = require(path.resolve(__dirname, '../../../client/node'));
 const { startServer } = require('./server');
+const { USER_TOKEN, makePki } = require('./certs');
 
 const SMALL = { fx: 131.25, fy: 131.25, cx: 79.5, cy: 59.5, depthScale: 1000 };
 
@@ -143,5 +144,73 @@ test('client against a real ism-server', async (t) => {
     }
     await assert.rejects(async () => { for await (const r of client.streamFrames(badSecondFrame())) void r; },
       /multiple of 3/);
+  });
+});
+
+test('client against a real ism-server with TLS and tokens', async (t) => {
+  const pki = makePki();
+  const server = await startServer({ args: pki.serverFlags() });
+  const mtls = await startServer({ args: pki.serverFlags('ca') });
+  const clients = [];
+  const open = (srv, options) => {
+    const client = connect(srv.address, { timeoutMs: 30000, ...options });
+    clients.push(client);
+    return client;
+  };
+  t.after(async () => {
+    for (const client of clients) client.close();
+    await Promise.all([server.stop(), mtls.stop()]);
+    pki.remove();
+  });
+  const tlsCa = pki.file('ca.crt');
+  const points = boxOnFloor();
+  const rejectsWith = (promise, codeName, pattern = /./) => assert.rejects(promise,
+    (e) => e instanceof IsmError && e.codeName === codeName && pattern.test(e.details));
+
+  await t.test('no token: UNAUTHENTICATED on every RPC but health', async () => {
+    const client = open(server, { tlsCa });
+    assert.equal(await client.health(), 'SERVING');
+    await rejectsWith(client.listModels(), 'UNAUTHENTICATED', /authorization: Bearer/);
+    await rejectsWith(client.recognizeCloud(points), 'UNAUTHENTICATED');
+    await rejectsWith((async () => { for await (const r of client.streamFrames([{ points }])) void r; })(), 'UNAUTHENTICATED');
+  });
+
+  await t.test('wrong token: UNAUTHENTICATED', async () => {
+    await rejectsWith(open(server, { tlsCa, token: 'not-a-token-of-this-server' }).listModels(), 'UNAUTHENTICATED', /not accepted/);
+  });
+
+  await t.test('right token: results from unary and streaming RPCs', async () => {
+    const client = open(server, { tlsCa, token: `${USER_TOKEN}\n` });
+    const models = await client.listModels();
+    assert.ok(models.length > 0, server.log());
+    const result = await client.recognizeCloud(points);
+    assert.equal(result.inputPoints, points.length / 3);
+    assert.equal(result.modelName, models[0].name);
+    const frames = [];
+    for await (const r of client.streamFrames([{ points, frameId: 5 }])) frames.push([r.frameId, r.outcome]);
+    assert.deepEqual(frames, [[5, 'result']]);
+  });
+
+  await t.test('wrong CA or plain text: the handshake fails', async () => {
+    const rogue = open(server, { tlsCa: pki.file('rogue-ca.crt'), token: USER_TOKEN });
+    await rejectsWith(rogue.health(), 'UNAVAILABLE', /certificate/);
+    // A later call on the same channel may fail during reconnect backoff, without the reason.
+    await rejectsWith(rogue.listModels(), 'UNAVAILABLE');
+    await rejectsWith(open(server, { token: USER_TOKEN }).health(), 'UNAVAILABLE');
+  });
+
+  await t.test('mTLS: only a client certificate from the client CA is let in', async () => {
+    const accepted = open(mtls, { tlsCa, tlsCert: pki.file('client.crt'), tlsKey: pki.file('client.key'), token: USER_TOKEN });
+    assert.ok((await accepted.listModels()).length > 0);
+    await rejectsWith(open(mtls, { tlsCa, token: USER_TOKEN }).health(), 'UNAVAILABLE');
+    const rogue = open(mtls, { tlsCa, tlsCert: pki.file('rogue-client.crt'), tlsKey: pki.file('rogue-client.key'), token: USER_TOKEN });
+    await rejectsWith(rogue.health(), 'UNAVAILABLE');
+  });
+
+  await t.test('bad security options are refused before connecting', () => {
+    assert.throws(() => connect(server.address, { tlsCert: pki.file('client.crt') }), /give both tlsCert and tlsKey/);
+    assert.throws(() => connect(server.address, { tlsCa: pki.file('missing.crt') }), /TLS CA .*missing\.crt: no such file/);
+    assert.throws(() => connect(server.address, { tlsCa: pki.file('tokens') }), /tokens: not a PEM file/);
+    assert.throws(() => connect(server.address, { token: 'two words' }), /printable ASCII/);
   });
 });

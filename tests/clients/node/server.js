@@ -3,9 +3,12 @@
 // gRPC port (--listen 127.0.0.1:0) and names it in its "listening on ... (port N)" log line.
 const { spawn } = require('node:child_process');
 
-function startServer({ bin = process.env.ISM_SERVER_BIN, modelDir = process.env.ISM_TEST_MODEL_DIR, timeoutMs = 30000 } = {}) {
+// args: extra ism-server flags (TLS, token files).
+function startServer({
+  bin = process.env.ISM_SERVER_BIN, modelDir = process.env.ISM_TEST_MODEL_DIR, timeoutMs = 30000, args = [],
+} = {}) {
   if (!bin) throw new Error('ISM_SERVER_BIN is not set (ctest sets it to the ism-server binary)');
-  const child = spawn(bin, ['--listen', '127.0.0.1:0', '--metrics-listen', '', '--models', modelDir, '--threads', '2'],
+  const child = spawn(bin, ['--listen', '127.0.0.1:0', '--metrics-listen', '', '--models', modelDir, '--threads', '2', ...args],
     { stdio: ['ignore', 'pipe', 'pipe'] });
   let log = '';
   return new Promise((resolve, reject) => {
