@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs what building, running and testing the project needs on Debian 12 (bookworm).
-# Used by the README's commands, by .ci/run and by the container build stage.
-#   deploy/install-deps.sh           build + runtime + test dependencies
+# Used by the README's commands, by .ci/run and by the container image.
+#   deploy/install-deps.sh           build + runtime + test and CI dependencies
+#   deploy/install-deps.sh --build   only what compiling the binaries needs (the image's build stage)
 #   deploy/install-deps.sh --runtime only the shared libraries the binaries load
 set -euo pipefail
 
@@ -12,13 +13,22 @@ runtime=(libpcl-common1.13 libpcl-io1.13 libpcl-features1.13 libpcl-filters1.13 
 build=(build-essential cmake ninja-build pkg-config git
        libpcl-dev libeigen3-dev libflann-dev libpng-dev zlib1g-dev
        libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler
-       libspdlog-dev libcli11-dev nlohmann-json3-dev libopenni2-dev prometheus-cpp-dev
-       libgtest-dev libgmock-dev libbenchmark-dev
-       python3 python3-grpcio python3-protobuf python3-numpy python3-yaml
-       sweethome3d-furniture
-       podman buildah debootstrap runc)
+       libspdlog-dev libcli11-dev nlohmann-json3-dev libopenni2-dev prometheus-cpp-dev libssl-dev)
+test=(libgtest-dev libgmock-dev libbenchmark-dev openssl
+      python3 python3-grpcio python3-protobuf python3-numpy python3-yaml
+      sweethome3d-furniture
+      podman buildah debootstrap runc
+      clang libclang-rt-14-dev libomp-dev)  # .ci: libFuzzer and TSan runtimes, OpenMP for clang
+# The Node client's tests need node >= 18 and npm; a node already installed (e.g. a newer one
+# from NodeSource, which bundles npm) is kept.
+if ! command -v node >/dev/null; then test+=(nodejs npm); fi
 
-if [[ "${1:-}" == "--runtime" ]]; then pkgs=("${runtime[@]}"); else pkgs=("${build[@]}"); fi
+case "${1:-}" in
+  --runtime) pkgs=("${runtime[@]}") ;;
+  --build) pkgs=("${build[@]}") ;;
+  "") pkgs=("${build[@]}" "${test[@]}") ;;
+  *) echo "usage: $0 [--build|--runtime]" >&2; exit 2 ;;
+esac
 
 sudo=""
 if [[ $(id -u) -ne 0 ]]; then sudo="sudo"; fi

@@ -1,6 +1,7 @@
-"""Builds deploy/Containerfile with podman, runs the image and calls it from the C++ ism-client
-on 127.0.0.1: health, one recognition, and a clean SIGTERM drain. Slow (the image compiles the
-project), so ctest labels it `container`.
+"""Builds deploy/Containerfile with podman, runs the image as deploy/compose.yaml and the
+Kubernetes Deployment do (non-root, read-only root filesystem) and calls it from the C++
+ism-client on 127.0.0.1: health, one recognition, and a clean SIGTERM drain. Slow (the image
+compiles the project), so ctest labels it `container`.
 
 Three adjustments for this CI sandbox, none of which the image needs (see
 ../shared/docs/CONTAINERS.md when present): the base image is made locally with debootstrap
@@ -52,8 +53,11 @@ class ContainerTest(unittest.TestCase):
 
         cls.port, cls.metrics_port = free_port(), free_port()
         cls.name = f"ism-container-test-{os.getpid()}"
-        # The model is mounted the way deploy/compose.yaml documents custom models.
-        started = run(PODMAN_RUN + ["run", "-d", "--name", cls.name, "--network=host", "--ulimit", "nofile=20000:20000",
+        # The model is mounted the way deploy/compose.yaml documents custom models. --read-only
+        # without podman's default tmpfs on /tmp, /var/tmp and /run: nothing in the container is
+        # writable, as under Docker's --read-only and Kubernetes' readOnlyRootFilesystem.
+        started = run(PODMAN_RUN + ["run", "-d", "--name", cls.name, "--read-only", "--read-only-tmpfs=false",
+                                    "--network=host", "--ulimit", "nofile=20000:20000",
                                     "-v", f"{os.path.abspath(MODEL_DIR)}:/models:ro", "-e", "ISM_MODELS=/models",
                                     "-e", f"ISM_LISTEN=127.0.0.1:{cls.port}",
                                     "-e", f"ISM_METRICS_LISTEN=127.0.0.1:{cls.metrics_port}", "-e", "ISM_THREADS=2",
@@ -82,8 +86,21 @@ class ContainerTest(unittest.TestCase):
         self.assertEqual(self.user, "10001")
         uid = run(PODMAN_RUN + ["exec", self.name, "id", "-u"], timeout=60)
         self.assertEqual(uid.stdout.strip(), "10001", uid.stderr)
+        # The server itself (PID 1), real and effective uid alike.
+        status = run(PODMAN_RUN + ["exec", self.name, "cat", "/proc/1/status"], timeout=60)
+        uids = next(line.split()[1:] for line in status.stdout.splitlines() if line.startswith("Uid:"))
+        self.assertEqual(set(uids), {"10001"}, status.stdout + status.stderr)
 
-    def test_2_health_and_recognition_from_the_cpp_client(self):
+    def test_2_root_filesystem_is_read_only(self):
+        inspect = run(["podman", "inspect", "--format", "{{.HostConfig.ReadonlyRootfs}}", self.name], timeout=60)
+        self.assertEqual(inspect.stdout.strip(), "true", inspect.stderr)
+        for path in ("/opt/ism/written-by-test", "/tmp/written-by-test"):
+            with self.subTest(path=path):
+                write = run(PODMAN_RUN + ["exec", self.name, "sh", "-c", f": > {path}"], timeout=60)
+                self.assertNotEqual(write.returncode, 0, f"{path} is writable")
+                self.assertIn("Read-only file system", write.stderr)
+
+    def test_3_health_and_recognition_from_the_cpp_client(self):
         health = run([CLIENT, "--server", self.address, "health"], timeout=60)
         self.assertEqual(health.returncode, 0, health.stdout + health.stderr)
         self.assertIn("SERVING", health.stdout)
@@ -99,11 +116,11 @@ class ContainerTest(unittest.TestCase):
         served_from = {os.path.splitext(f)[0] for f in os.listdir(MODEL_DIR) if f.endswith(".ismm")}
         self.assertIn(result["model_name"], served_from)
 
-    def test_3_healthcheck_command_of_the_image_passes(self):
+    def test_4_healthcheck_command_of_the_image_passes(self):
         check = run(PODMAN_RUN + ["healthcheck", "run", self.name], timeout=60)
         self.assertEqual(check.returncode, 0, check.stdout + check.stderr)
 
-    def test_4_sigterm_drains_and_exits_cleanly(self):
+    def test_5_sigterm_drains_and_exits_cleanly(self):
         stopped = run(PODMAN_RUN + ["stop", "-t", "30", self.name], timeout=120)
         self.assertEqual(stopped.returncode, 0, stopped.stderr)
         code = run(["podman", "inspect", "--format", "{{.State.ExitCode}}", self.name], timeout=60)

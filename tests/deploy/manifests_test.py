@@ -1,5 +1,6 @@
 """Static checks of deploy/: every YAML file parses, the Kubernetes objects fit together (names,
-selectors, probes, ports), and every ISM_* variable the deployment sets is one that ism-server
+selectors, probes, ports), the server runs non-root on a read-only root filesystem in compose and
+Kubernetes alike, and every ISM_* variable the deployment sets is one that ism-server
 actually reads (its envname() declarations in server/main.cc), so a renamed flag cannot leave
 a ConfigMap silently ignored."""
 import glob
@@ -102,6 +103,29 @@ class ManifestsTest(unittest.TestCase):
             containerfile_vars = set(re.findall(r"\b(ISM_[A-Z0-9_]+)=", f.read()))
         self.assertTrue(containerfile_vars)
         self.assertLessEqual(containerfile_vars, self.env_vars)
+
+    def test_server_runs_non_root_with_a_read_only_root_filesystem(self):
+        pod = self.one("Deployment")["spec"]["template"]["spec"]
+        self.assertTrue(pod["securityContext"]["runAsNonRoot"])
+        self.assertNotEqual(pod["securityContext"]["runAsUser"], 0)
+        container = pod["containers"][0]["securityContext"]
+        self.assertTrue(container["readOnlyRootFilesystem"])
+        self.assertFalse(container["allowPrivilegeEscalation"])
+        self.assertEqual(container["capabilities"]["drop"], ["ALL"])
+        patch = next(d for f, d in self.objects["Deployment"] if f == "models-init-container.patch.yaml")
+        init = patch["spec"]["template"]["spec"]["initContainers"][0]["securityContext"]
+        self.assertTrue(init["readOnlyRootFilesystem"])
+        self.assertNotEqual(init["runAsUser"], 0)
+
+        compose = load_all(os.path.join(DEPLOY, "compose.yaml"))[0]["services"]["ism-server"]
+        self.assertIs(compose["read_only"], True)
+        self.assertEqual(compose["cap_drop"], ["ALL"])
+        self.assertIn("no-new-privileges:true", compose["security_opt"])
+        self.assertNotIn("user", compose, "the image's USER is the non-root uid; compose must not override it")
+        with open(os.path.join(DEPLOY, "Containerfile")) as f:
+            users = re.findall(r"^USER\s+(\S+)", f.read(), re.MULTILINE)
+        self.assertEqual(users[-1:], [str(pod["securityContext"]["runAsUser"])],
+                         "the runtime stage's USER is the uid the Deployment runs as")
 
     def test_models_patch_points_the_server_at_the_volume_the_init_container_fills(self):
         patch = next(d for f, d in self.objects["Deployment"] if f == "models-init-container.patch.yaml")

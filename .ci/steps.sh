@@ -1,0 +1,95 @@
+# The CI steps besides the main build, sourced by .ci/run and .ci/sanitizers from the repository
+# root. Each configures its own build tree, builds only the targets its tests run, runs them and
+# returns non-zero on any failure. Instrumented builds use -O1 (as the sanitizers' documentation
+# advises; it also compiles faster than -O3) with line tables, so reports name file:line.
+
+jobs=$(nproc)
+instrumented=(-DCMAKE_BUILD_TYPE=Release "-DCMAKE_CXX_FLAGS_RELEASE=-O1 -DNDEBUG" -DISM_BUILD_TESTS=ON
+              -DISM_BUILD_SERVICE=ON)
+# clang: its libFuzzer and TSan runtimes come with libclang-rt-14-dev.
+configure_clang() {  # BUILD_DIR [cmake -D options...]
+  local dir=$1
+  shift
+  CC=clang CXX=clang++ cmake -S . -B "$dir" -G Ninja "${instrumented[@]}" -DCMAKE_CXX_FLAGS=-gline-tables-only \
+    "$@" >/dev/null
+}
+
+# Reports that processes other than ctest's own wrote. The tests start ism-server and ism-client
+# as child processes and stop the server with SIGKILL, so a sanitizer report there would change
+# no exit status a test checks; log_path sends every process's reports to DIR/NAME.PID instead,
+# and a file there fails the step.
+sanitizer_reports() {  # DIR
+  local reports=("$1"/*.[0-9]*)
+  [[ -e ${reports[0]} ]] || return 0
+  echo "sanitizer reports in ${#reports[@]} process(es):"
+  head -n 60 "${reports[@]}"
+  return 1
+}
+
+# libFuzzer over every decoder: ISM_FUZZ_SECONDS each over the seed corpus in tests/fuzz/corpus.
+fuzz_step() {
+  configure_clang build-fuzz -DISM_FUZZ=ON -DISM_FUZZ_SECONDS="${ISM_FUZZ_SECONDS:-10}" || return
+  cmake --build build-fuzz -j"$jobs" --target ism_fuzzers || return
+  ctest --test-dir build-fuzz -L fuzz --output-on-failure
+}
+
+# SigtermDrainsTheRunningRequest needs a 640x480 recognition to finish within the server's drain
+# time, which the sanitizers' slowdown exceeds.
+too_slow_instrumented='^ServiceShutdown\.SigtermDrainsTheRunningRequest$'
+
+# ThreadSanitizer over the server tests (ism-server, ism-client and the test driver instrumented).
+# clang rather than gcc because of OpenMP: with clang our own OpenMP loops (recognition, front
+# end, training) run on LLVM's libomp, whose TSan tool libarcher tells TSan about OpenMP's
+# barriers and tasks; gcc's libgomp has no such tool and every loop would be reported. Debian's
+# PCL runs its loops (normals, MLS, SHOT) on libgomp regardless, but PCL is not instrumented:
+# ignore_noninstrumented_modules keeps the allocations and copies it makes on libgomp's threads
+# out of the picture. .ci/tsan.supp says what else is left out and why.
+tsan_step() {
+  configure_clang build-tsan -DISM_SANITIZE=thread || return
+  local options="halt_on_error=0 second_deadlock_stack=1 ignore_noninstrumented_modules=1"
+  options+=" suppressions=$PWD/.ci/tsan.supp"
+  # The build runs service_test to list its tests (gtest_discover_tests), so it needs them too.
+  TSAN_OPTIONS=$options cmake --build build-tsan -j"$jobs" --target ism-server ism-client service_test || return
+  local reports=$PWD/build-tsan/sanitizer-reports
+  rm -rf "$reports" && mkdir -p "$reports"
+  # libarcher comes with clang's libomp (libomp-dev), next to clang's resource directory.
+  local archer
+  archer=$(realpath -e "$(clang -print-resource-dir)/../../libarcher.so") || return
+  local status=0
+  OMP_TOOL_LIBRARIES=$archer TSAN_OPTIONS="$options log_path=$reports/tsan" \
+    ctest --test-dir build-tsan -L service -E "$too_slow_instrumented" --output-on-failure --timeout 900 || status=$?
+  sanitizer_reports "$reports" || status=1
+  return $status
+}
+
+# AddressSanitizer + UndefinedBehaviorSanitizer over the unit and server tests, with gcc, the
+# compiler the shipped binaries are built with.
+asan_step() {
+  cmake -S . -B build-asan -G Ninja "${instrumented[@]}" -DCMAKE_CXX_FLAGS=-g1 -DISM_SANITIZE="address;undefined" \
+    >/dev/null || return
+  # The unit test executables are named after tests/core/*_test.cc (tests/CMakeLists.txt).
+  local targets=(ism-server ism-client service_test)
+  local src
+  for src in tests/core/*_test.cc; do targets+=("$(basename "$src" .cc)"); done
+  cmake --build build-asan -j"$jobs" --target "${targets[@]}" || return
+  local reports=$PWD/build-asan/sanitizer-reports
+  rm -rf "$reports" && mkdir -p "$reports"
+  local status=0
+  ASAN_OPTIONS="log_path=$reports/asan" LSAN_OPTIONS="suppressions=$PWD/.ci/lsan.supp print_suppressions=0" \
+    UBSAN_OPTIONS="log_path=$reports/ubsan print_stacktrace=1" \
+    ctest --test-dir build-asan -L "core|service" -E "$too_slow_instrumented" --output-on-failure --timeout 1800 \
+    || status=$?
+  sanitizer_reports "$reports" || status=1
+  return $status
+}
+
+# Runs FUNCTION, prints its wall time, and remembers a failure in $failed without stopping.
+failed=()
+timings=""
+run_step() {  # NAME FUNCTION
+  local start=$SECONDS
+  echo "== $1"
+  if ! "$2"; then failed+=("$1"); fi
+  timings+="${timings:+, }$1 $((SECONDS - start)) s"
+  echo "== $1: $((SECONDS - start)) s"
+}
