@@ -18,7 +18,7 @@ while (( $# )); do
     --skip-training) skip_training=1 ;;
     --skip-peer) skip_peer=1 ;;
     --repetitions) repetitions=${2:?--repetitions needs a number}; shift ;;
-    -h|--help) sed -n '2,13p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,11p' "$0"; exit 0 ;;
     -*) echo "run.sh: unknown option $1" >&2; exit 2 ;;
     *) build=$(cd "$(dirname "$1")" && pwd)/$(basename "$1") ;;
   esac
@@ -32,11 +32,12 @@ command_line+=" --repetitions $repetitions"
 py=/usr/bin/python3
 
 if [[ ! -f $build/CMakeCache.txt ]]; then
-  cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DISM_BUILD_TESTS=ON -DISM_BUILD_SERVICE=ON
+  cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=Release -DISM_BUILD_TESTS=ON -DISM_BUILD_SERVICE=ON >&2
 fi
 build_type=$(sed -n 's/^CMAKE_BUILD_TYPE:[A-Z]*=//p' "$build/CMakeCache.txt")
 [[ $build_type == Release ]] || echo "run.sh: WARNING: $build is a '$build_type' build; figures are meant for Release" >&2
-cmake --build "$build" --target ism-bench ism-server ism-train pcl-ism-peer
+# Everything but the table goes to stderr.
+cmake --build "$build" --target ism-bench ism-server ism-train pcl-ism-peer >&2
 
 out=$build/bench-results
 mkdir -p "$out"
@@ -56,7 +57,7 @@ echo "== ism-bench ($repetitions repetitions)" >&2
 
 manifest=$("$py" "$root/tests/bench/make_manifest.py" --work "$build/bench-default-model-src")
 if (( skip_training )); then
-  echo '{"skipped": "--skip-training"}' >"$out/training.json"
+  echo '{"skipped": "skipped (--skip-training)"}' >"$out/training.json"
 else
   echo "== ism-train on $manifest" >&2
   start=$(date +%s.%N)
@@ -68,7 +69,7 @@ fi
 
 peer_status=""
 if (( skip_peer )); then
-  peer_status="--skip-peer"
+  peer_status="skipped (--skip-peer)"
 else
   echo "== pcl-ism-peer on ${scenes[*]}" >&2
   set +e
@@ -84,5 +85,5 @@ else
   fi
 fi
 
-"$py" "$root/tests/bench/report.py" --bench "$out/bench.json" --peer "$out/peer.json" --peer-status "$peer_status" \
+"$py" "$root/tests/bench/report.py" --bench "$out/bench.json" --peer "$out/peer.json" --peer-status="$peer_status" \
   --training "$out/training.json" --command "$command_line" | tee "$out/table.md"
