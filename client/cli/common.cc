@@ -120,30 +120,9 @@ v1::RecognitionOptions RecognitionFlags::build() const {
 
 // PCD/PLY through core's loaders (NaNs dropped, sensor pose kept); PNG sent as it is and
 // decoded here only for a picture.
-FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& intrinsics, bool decode_png) {
-  FileScene out;
-  std::string extension = std::filesystem::path(path).extension().string();
-  for (auto& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (extension == ".png") {
-    auto* depth = out.message.mutable_depth();
-    depth->set_encoding(v1::DEPTH_ENCODING_PNG);
-    depth->set_data(readFileBytes(path));
-    *depth->mutable_intrinsics() = intrinsics;
-    if (decode_png) {
-      out.scene = decodeDepthPng(depth->data(), {intrinsics.fx(), intrinsics.fy(), intrinsics.cx(), intrinsics.cy(),
-                                                 intrinsics.depth_scale()}, path);
-      out.camera.width = out.scene.image_width;
-      out.camera.height = out.scene.image_height;
-      out.camera.fx = intrinsics.fx();
-      out.camera.fy = intrinsics.fy();
-      out.camera.cx = intrinsics.cx();
-      out.camera.cy = intrinsics.cy();
-    }
-    return out;
-  }
-  out.scene = loadCloudFile(path);
-  const Scene& scene = out.scene;
-  auto* cloud = out.message.mutable_cloud();
+v1::Scene cloudMessage(const Scene& scene) {
+  v1::Scene message;
+  auto* cloud = message.mutable_cloud();
   // An organized cloud goes out as its whole image grid, NaN where there is no point: the
   // server's front end finds keypoints on occluding contours only in an image.
   const bool organized = scene.image_width > 0 && scene.image_height > 0;
@@ -168,15 +147,41 @@ FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& int
     }
   }
   cloud->set_xyz(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
-  auto* origin = out.message.mutable_sensor_origin();
+  auto* origin = message.mutable_sensor_origin();
   origin->set_x(scene.sensor_origin.x());
   origin->set_y(scene.sensor_origin.y());
   origin->set_z(scene.sensor_origin.z());
-  auto* q = out.message.mutable_sensor_orientation();
+  auto* q = message.mutable_sensor_orientation();
   q->set_w(scene.sensor_orientation.w());
   q->set_x(scene.sensor_orientation.x());
   q->set_y(scene.sensor_orientation.y());
   q->set_z(scene.sensor_orientation.z());
+  return message;
+}
+
+FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& intrinsics, bool decode_png) {
+  FileScene out;
+  std::string extension = std::filesystem::path(path).extension().string();
+  for (auto& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension == ".png") {
+    auto* depth = out.message.mutable_depth();
+    depth->set_encoding(v1::DEPTH_ENCODING_PNG);
+    depth->set_data(readFileBytes(path));
+    *depth->mutable_intrinsics() = intrinsics;
+    if (decode_png) {
+      out.scene = decodeDepthPng(depth->data(), {intrinsics.fx(), intrinsics.fy(), intrinsics.cx(), intrinsics.cy(),
+                                                 intrinsics.depth_scale()}, path);
+      out.camera.width = out.scene.image_width;
+      out.camera.height = out.scene.image_height;
+      out.camera.fx = intrinsics.fx();
+      out.camera.fy = intrinsics.fy();
+      out.camera.cx = intrinsics.cx();
+      out.camera.cy = intrinsics.cy();
+    }
+    return out;
+  }
+  out.scene = loadCloudFile(path);
+  out.message = cloudMessage(out.scene);
   return out;
 }
 

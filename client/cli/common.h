@@ -52,6 +52,11 @@ struct RecognitionFlags {
   v1::RecognitionOptions build() const;
 };
 
+// A cloud as the wire carries it: an organized cloud as its whole image grid, NaN where no point
+// was kept (the server finds keypoints on occluding contours only in an image), colour when there
+// is some, the sensor pose.
+v1::Scene cloudMessage(const Scene& scene);
+
 // A file as the wire carries it, plus the decoded scene for --picture.
 struct FileScene {
   v1::Scene message;

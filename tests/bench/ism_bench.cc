@@ -35,6 +35,7 @@
 #include <omp.h>
 #endif
 
+#include "client/cli/common.h"
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
 #include "core/io/cloud_io.h"
@@ -361,42 +362,11 @@ class Server {
   std::unique_ptr<v1::FurnitureRecognizer::Stub> stub_;
 };
 
-// The scene as ism-client sends a cloud file (client/cli/common.cc): an organized cloud as its
-// whole image grid with NaN where no point was kept, colour when there is some, the sensor pose.
+// The scene exactly as ism-client sends a cloud file.
 v1::RecognizeRequest requestFor(const Scene& scene, const Config& c) {
   v1::RecognizeRequest request;
   request.mutable_options()->set_model(fs::path(c.model_path).stem().string());
-  v1::Scene* out = request.mutable_scene();
-  auto* cloud = out->mutable_cloud();
-  const bool organized = scene.image_width > 0 && scene.image_height > 0;
-  const size_t slots = organized ? static_cast<size_t>(scene.image_width) * scene.image_height : scene.cloud->size();
-  if (organized) {
-    cloud->set_width(static_cast<uint32_t>(scene.image_width));
-    cloud->set_height(static_cast<uint32_t>(scene.image_height));
-  }
-  std::vector<float> xyz(slots * 3, std::numeric_limits<float>::quiet_NaN());
-  std::string* rgb = cloud->mutable_rgb();
-  if (scene.has_color) rgb->assign(slots * 3, '\0');
-  for (size_t i = 0; i < scene.cloud->size(); ++i) {
-    const auto& p = (*scene.cloud)[i];
-    const size_t slot = organized ? static_cast<size_t>(scene.pixel_index[i]) : i;
-    xyz[slot * 3] = p.x;
-    xyz[slot * 3 + 1] = p.y;
-    xyz[slot * 3 + 2] = p.z;
-    if (scene.has_color) {
-      (*rgb)[slot * 3] = static_cast<char>(p.r);
-      (*rgb)[slot * 3 + 1] = static_cast<char>(p.g);
-      (*rgb)[slot * 3 + 2] = static_cast<char>(p.b);
-    }
-  }
-  cloud->set_xyz(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
-  out->mutable_sensor_origin()->set_x(scene.sensor_origin.x());
-  out->mutable_sensor_origin()->set_y(scene.sensor_origin.y());
-  out->mutable_sensor_origin()->set_z(scene.sensor_origin.z());
-  out->mutable_sensor_orientation()->set_w(scene.sensor_orientation.w());
-  out->mutable_sensor_orientation()->set_x(scene.sensor_orientation.x());
-  out->mutable_sensor_orientation()->set_y(scene.sensor_orientation.y());
-  out->mutable_sensor_orientation()->set_z(scene.sensor_orientation.z());
+  *request.mutable_scene() = client::cloudMessage(scene);
   return request;
 }
 
