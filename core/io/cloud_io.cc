@@ -16,6 +16,7 @@
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
+#include "core/io/pcd_reader.h"
 
 namespace ism {
 namespace {
@@ -200,39 +201,6 @@ void requireSupportedPlyHeader(const std::string& path) {
   }
 }
 
-// PCL 1.13's PCDReader::read crashes on a header without FIELDS or POINTS and returns zeros
-// for one without DATA, so the header is checked on its own first.
-void readPcd(const std::string& path, pcl::PCLPointCloud2& blob, Eigen::Vector4f& origin,
-             Eigen::Quaternionf& orientation) {
-  pcl::PCDReader reader;
-  int version = 0, data_type = 0;
-  unsigned int data_start = 0;
-  if (reader.readHeader(path, blob, origin, orientation, version, data_type, data_start) < 0) {
-    throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD header");
-  }
-  if (blob.fields.empty() || static_cast<size_t>(blob.width) * blob.height == 0 || data_start == 0) {
-    throw Error(ErrorCode::kInvalidInput, path + ": not a PCD file (header lacks FIELDS, POINTS or DATA)");
-  }
-  // PCL 1.13 takes a binary_compressed body's own uncompressed size and then unpacks the header's
-  // points from it: a smaller one reads past its buffer (found by tests/fuzz).
-  if (data_type == 2) {
-    std::ifstream in(path, std::ios::binary);
-    uint32_t sizes[2] = {0, 0};  // compressed, uncompressed; little-endian as PCL writes them
-    if (!in.seekg(data_start) || !in.read(reinterpret_cast<char*>(sizes), sizeof sizes)) {
-      throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (binary_compressed body is truncated)");
-    }
-    const uint64_t needed = static_cast<uint64_t>(blob.point_step) * blob.width * blob.height;
-    if (sizes[1] != needed) {
-      throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (compressed body unpacks to " +
-                                                std::to_string(sizes[1]) + " bytes, the header's points need " +
-                                                std::to_string(needed) + ")");
-    }
-  }
-  if (reader.read(path, blob, origin, orientation, version) < 0) {
-    throw Error(ErrorCode::kInvalidInput, path + ": malformed PCD file (data is truncated or corrupt)");
-  }
-}
-
 template <class PointOut>
 void writePcd(const Scene& scene, const std::string& path) {
   pcl::PointCloud<PointOut> out;
@@ -301,7 +269,11 @@ Scene loadCloudFile(const std::string& path) {
   Eigen::Quaternionf orientation = Eigen::Quaternionf::Identity();
   try {
     if (ext == ".pcd") {
-      readPcd(path, blob, origin, orientation);
+      // Our own parser rather than PCL's PCDReader, which trusts its header (core/io/pcd_reader.h).
+      PcdCloud pcd = parsePcd(readFileBytes(path), path);
+      blob = std::move(pcd.blob);
+      origin = pcd.origin;
+      orientation = pcd.orientation;
     } else {
       requireSupportedPlyHeader(path);
       int version = 0;
