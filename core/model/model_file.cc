@@ -72,6 +72,12 @@ class Reader {
   }
 
   Codebook codebook(const v1::Codebook& in, const std::string& where) const {
+    // A zero dimension would pass the product check below with any size, and the codebook would
+    // then allocate per-centre state for up to 2^32 centres (found by tests/fuzz).
+    if (in.dim() == 0 || in.size() == 0) {
+      fail(where + " has size " + std::to_string(in.size()) + " and dim " + std::to_string(in.dim()) +
+           "; both must be positive");
+    }
     if (static_cast<uint64_t>(in.centers_size()) != static_cast<uint64_t>(in.size()) * in.dim()) {
       fail(where + " has " + std::to_string(in.centers_size()) + " centre values, expected size " +
            std::to_string(in.size()) + " x dim " + std::to_string(in.dim()));

@@ -139,16 +139,37 @@ TEST_F(ModelFileTest, RejectsANewerFormatVersion) {
   expectCorrupt(file.SerializeAsString(), "format version 2");
 }
 
-TEST_F(ModelFileTest, RejectsInconsistentVoteTable) {
+// The sample model's file with its payload changed by `edit` and a valid checksum, so that the
+// loader's consistency checks, not the CRC, must catch the change.
+template <class Edit>
+std::string editedModelFile(Edit edit) {
   v1::ModelFile file;
   file.ParseFromString(serializeModel(sampleModel()));
   v1::ModelData data;
   data.ParseFromString(file.payload());
-  data.mutable_categories(1)->mutable_global_votes()->mutable_offsets()->RemoveLast();
+  edit(data);
   file.set_payload(data.SerializeAsString());
   file.set_payload_crc32(static_cast<uint32_t>(
       ::crc32(0L, reinterpret_cast<const Bytef*>(file.payload().data()), static_cast<uInt>(file.payload().size()))));
-  expectCorrupt(file.SerializeAsString(), "category 'bed' global votes has 6 offsets");
+  return file.SerializeAsString();
+}
+
+TEST_F(ModelFileTest, RejectsInconsistentVoteTable) {
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  data.mutable_categories(1)->mutable_global_votes()->mutable_offsets()->RemoveLast();
+                }),
+                "category 'bed' global votes has 6 offsets");
+}
+
+// Found by tests/fuzz: with dim 0, size x dim matches an empty centre list for any size.
+TEST_F(ModelFileTest, RejectsACodebookWithoutDimension) {
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  auto* codebook = data.mutable_global_codebook();
+                  codebook->set_dim(0);
+                  codebook->set_size(4000000000u);
+                  codebook->clear_centers();
+                }),
+                "global codebook has size 4000000000 and dim 0; both must be positive");
 }
 
 TEST_F(ModelFileTest, MissingFileIsNotFound) {
