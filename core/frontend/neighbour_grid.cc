@@ -8,6 +8,7 @@
 #include <numeric>
 
 #include "core/common/error.h"
+#include "core/common/hash.h"
 
 namespace ism {
 namespace {
@@ -28,13 +29,8 @@ int64_t clampCell(double c) {
 
 }  // namespace
 
-// A full 64-bit mix, as the Hough space's bin map uses: the keys of a block of cells form an
-// arithmetic lattice, which a multiplicative hash maps onto a few long runs of slots.
-uint64_t NeighbourGrid::slotOf(uint64_t key) const {
-  key = (key ^ (key >> 30)) * 0xBF58476D1CE4E5B9ull;
-  key = (key ^ (key >> 27)) * 0x94D049BB133111EBull;
-  return (key ^ (key >> 31)) >> table_shift_;
-}
+// The top bits of a full mix (core/common/hash.h).
+uint64_t NeighbourGrid::slotOf(uint64_t key) const { return mix64(key) >> table_shift_; }
 
 uint64_t NeighbourGrid::keyOf(int64_t x, int64_t y, int64_t z) const {
   return (static_cast<uint64_t>(x) << 42) | (static_cast<uint64_t>(y) << 21) | static_cast<uint64_t>(z);

@@ -13,6 +13,7 @@
 #endif
 
 #include "core/common/error.h"
+#include "core/common/hash.h"
 
 namespace ism {
 namespace {
@@ -90,13 +91,8 @@ class BinMap {
   const std::vector<Slot>& slots() const { return slots_; }  // empty ones have kEmptyKey
 
  private:
-  // A full 64-bit mix (splitmix64's finaliser): keys of a block of bins are an arithmetic
-  // lattice, which a multiplicative hash maps onto a few long runs of slots.
-  size_t home(BinKey key) const {
-    key = (key ^ (key >> 30)) * 0xBF58476D1CE4E5B9ull;
-    key = (key ^ (key >> 27)) * 0x94D049BB133111EBull;
-    return static_cast<size_t>((key ^ (key >> 31)) >> shift_);
-  }
+  // The top bits of a full mix (core/common/hash.h).
+  size_t home(BinKey key) const { return static_cast<size_t>(mix64(key) >> shift_); }
 
   void grow() {
     std::vector<Slot> old = std::move(slots_);
