@@ -169,14 +169,16 @@ FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& int
     depth->set_data(readFileBytes(path));
     *depth->mutable_intrinsics() = intrinsics;
     if (decode_png) {
-      out.scene = decodeDepthPng(depth->data(), {intrinsics.fx(), intrinsics.fy(), intrinsics.cx(), intrinsics.cy(),
-                                                 intrinsics.depth_scale()}, path);
+      DepthIntrinsics k;
+      k.fx = intrinsics.fx();
+      k.fy = intrinsics.fy();
+      k.cx = intrinsics.cx();
+      k.cy = intrinsics.cy();
+      k.depth_scale = intrinsics.depth_scale();
+      out.scene = decodeDepthPng(depth->data(), k, path);
+      static_cast<PinholeIntrinsics&>(out.camera) = k;
       out.camera.width = out.scene.image_width;
       out.camera.height = out.scene.image_height;
-      out.camera.fx = intrinsics.fx();
-      out.camera.fy = intrinsics.fy();
-      out.camera.cx = intrinsics.cx();
-      out.camera.cy = intrinsics.cy();
     }
     return out;
   }

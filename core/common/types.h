@@ -18,6 +18,21 @@ using Cloud = pcl::PointCloud<PointT>;
 // Downsampled points with their normals: the search surface of SHOT and of the boundary test.
 using Surface = pcl::PointCloud<pcl::PointNormal>;
 
+// A pinhole camera's focal lengths and principal point, in pixels. The defaults are the Kinect's
+// 640x480 depth camera, which the virtual scanner imitates.
+struct PinholeIntrinsics {
+  float fx = 525.0f;
+  float fy = 525.0f;
+  float cx = 319.5f;
+  float cy = 239.5f;
+};
+
+// A pinhole camera with its image size: the virtual scanner's sensor, the picture's viewpoint.
+struct CameraIntrinsics : PinholeIntrinsics {
+  int width = 640;
+  int height = 480;
+};
+
 // One sensor frame (or a whole reconstructed room) ready for the front end.
 struct Scene {
   // Finite points only: loaders drop NaN/Inf. Never null after loading.

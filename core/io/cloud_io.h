@@ -9,11 +9,7 @@
 
 namespace ism {
 
-struct DepthIntrinsics {
-  float fx = 525.0f;
-  float fy = 525.0f;
-  float cx = 319.5f;
-  float cy = 239.5f;
+struct DepthIntrinsics : PinholeIntrinsics {
   // Raw depth units per metre: 1000 for OpenNI millimetres, 5000 for TUM RGB-D PNGs.
   float depth_scale = 1000.0f;
 };

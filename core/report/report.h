@@ -18,12 +18,9 @@ nlohmann::json toJson(const Hypothesis& hypothesis);
 //  "surface_points", "keypoints"}.
 nlohmann::json toJson(const RecognitionResult& result);
 
-struct PictureParams {
-  // The sensor the picture is taken with: Kinect intrinsics by default, placed at the scene's
-  // sensor pose (optical frame: x right, y down, z forward).
-  int width = 640;
-  int height = 480;
-  float fx = 525.0f, fy = 525.0f, cx = 319.5f, cy = 239.5f;
+// The base is the sensor the picture is taken with: Kinect intrinsics by default, placed at the
+// scene's sensor pose (optical frame: x right, y down, z forward).
+struct PictureParams : CameraIntrinsics {
   int line_width = 2;
 };
 

@@ -11,15 +11,6 @@
 
 namespace ism {
 
-struct CameraIntrinsics {
-  int width = 640;
-  int height = 480;
-  float fx = 525.0f;
-  float fy = 525.0f;
-  float cx = 319.5f;
-  float cy = 239.5f;
-};
-
 // Applied after rendering. min/max range always apply; `enabled = false` gives exact depth.
 struct NoiseParams {
   bool enabled = true;

@@ -89,7 +89,7 @@ int main(int argc, char** argv) {
       if (!picture.empty()) {
         ism::PictureParams pp;
         if (isPng(file)) {
-          pp.fx = intrinsics.fx, pp.fy = intrinsics.fy, pp.cx = intrinsics.cx, pp.cy = intrinsics.cy;
+          static_cast<ism::PinholeIntrinsics&>(pp) = intrinsics;
         }
         if (scene.image_width > 0) pp.width = scene.image_width, pp.height = scene.image_height;
         ism::savePicture(scene, result.hypotheses, picture, pp);
