@@ -62,8 +62,7 @@ const pcl::PCLPointField* findField(const pcl::PCLPointCloud2& blob, const char*
   return nullptr;
 }
 
-// A header may declare a field that reaches past the end of its point (PCD's SIZE and TYPE
-// disagreeing, found by tests/fuzz); reading it would run past the data.
+// A field must lie inside its point; the PCD parser guarantees it, PCL's PLY reader is checked.
 void requireFieldInsidePoint(const pcl::PCLPointCloud2& blob, const pcl::PCLPointField& field, const std::string& path) {
   const size_t size = static_cast<size_t>(pcl::getFieldSize(field.datatype));
   if (size == 0 || static_cast<size_t>(field.offset) + size > blob.point_step) {

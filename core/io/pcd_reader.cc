@@ -30,8 +30,9 @@ constexpr uint64_t kMaxLzfRatio = 88;
 
 bool isBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\v' || c == '\f'; }
 
-std::vector<std::string_view> splitWords(std::string_view line) {
-  std::vector<std::string_view> words;
+// Into `words` (cleared first), so that an ASCII body's lines reuse one buffer.
+void splitWords(std::string_view line, std::vector<std::string_view>& words) {
+  words.clear();
   size_t i = 0;
   while (i < line.size()) {
     while (i < line.size() && isBlank(line[i])) ++i;
@@ -39,7 +40,6 @@ std::vector<std::string_view> splitWords(std::string_view line) {
     while (i < line.size() && !isBlank(line[i])) ++i;
     if (i > start) words.push_back(line.substr(start, i - start));
   }
-  return words;
 }
 
 template <class T>
@@ -90,7 +90,8 @@ Header readHeader(std::string_view bytes, const std::string& source) {
     if (pos > kMaxHeaderBytes) fail(source, "no DATA line in the first 1 MiB");
     size_t end = bytes.find('\n', pos);
     if (end == std::string_view::npos) end = bytes.size();
-    const auto words = splitWords(bytes.substr(pos, end - pos));
+    std::vector<std::string_view> words;
+    splitWords(bytes.substr(pos, end - pos), words);
     pos = end + 1;
     if (words.empty() || words[0][0] == '#') continue;
     const std::string_view keyword = words[0];
@@ -305,7 +306,7 @@ void readAscii(std::string_view body, const Layout& layout, pcl::PCLPointCloud2&
     }
     size_t end = body.find('\n', pos);
     if (end == std::string_view::npos) end = body.size();
-    words = splitWords(body.substr(pos, end - pos));
+    splitWords(body.substr(pos, end - pos), words);
     pos = end + 1;
     if (words.empty()) continue;
     if (words.size() != layout.values_per_point) {
