@@ -7,6 +7,7 @@
 #include <cmath>
 #include <iterator>
 #include <limits>
+#include <optional>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -23,8 +24,10 @@ const VoteTable& votesOf(const CategoryModel& category, CodebookType type) {
 }
 
 // The cube of edge `bin_size` centred at `center`; scoreAt and findPeaks must agree on it.
+// Without branches: whether a vote is inside is as good as random.
 bool insideCube(const Eigen::Vector3f& p, const Eigen::Vector3f& center, float half_edge) {
-  return ((p - center).cwiseAbs().array() <= half_edge).all();
+  const Eigen::Vector3f d = (p - center).cwiseAbs();
+  return (d.x() <= half_edge) & (d.y() <= half_edge) & (d.z() <= half_edge);
 }
 
 // Hough bins are addressed by their integer coordinates packed into 63 bits (21 bits each, so
@@ -54,6 +57,9 @@ const std::array<Eigen::Vector3i, 27>& neighbourhood() {
   }();
   return offsets;
 }
+
+// neighbourhood() runs in key order: the offsets before the centre's lead to lower coordinates.
+constexpr size_t kCentre = 13;
 
 // Open addressing with linear probing in one flat array: a vote costs one probe into one cache
 // line instead of std::unordered_map's node per bin.
@@ -193,12 +199,59 @@ class VoteCaster {
     by_keypoint_.resize(activations.size());
     std::vector<uint32_t> cursor(offsets_.begin(), offsets_.end() - 1);
     for (const auto& a : activations) by_keypoint_[cursor[static_cast<size_t>(a.keypoint)]++] = a;
+    // The activated codewords' votes de-interleaved (the rotation then runs four votes at a time),
+    // and the longest of each.
+    const size_t stored = table_.vectors.size();
+    vx_.reset(new float[stored]);
+    vy_.reset(new float[stored]);
+    vz_.reset(new float[stored]);
+    longest_.assign(static_cast<size_t>(codewords), kNotActivated);
+    for (const auto& a : activations) {
+      const auto codeword = static_cast<size_t>(a.codeword);
+      float& longest = longest_[codeword];
+      if (longest != kNotActivated) continue;
+      float squared = 0;
+      for (uint32_t v = table_.offsets[codeword]; v < table_.offsets[codeword + 1]; ++v) {
+        const Eigen::Vector3f& vote = table_.vectors[v];
+        vx_[v] = vote.x();
+        vy_[v] = vote.y();
+        vz_[v] = vote.z();
+        squared = std::max(squared, vote.squaredNorm());
+        finite_ = finite_ && std::isfinite(vote.squaredNorm());
+      }
+      longest = std::sqrt(squared);
+    }
   }
 
   const CategoryModel& category() const { return category_; }
   const Features& features() const { return features_; }
   size_t keypoints() const { return features_.size(); }
   size_t votes() const { return votes_; }
+
+  // Bounds that hold every vote: a vote lands at o + R^T v, whose coordinate i lies within
+  // |column i of R| * |v| of o's (Cauchy-Schwarz), |v| at most the longest vote of the keypoint's
+  // activated codewords. False when nothing votes or a bound is not finite.
+  bool voteBounds(Eigen::Vector3f& lo, Eigen::Vector3f& hi) const {
+    if (!finite_) return false;
+    lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
+    hi = -lo;
+    bool any = false;
+    for (size_t k = 0; k < keypoints(); ++k) {
+      float reach = -1;
+      for (uint32_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
+        const int codeword = by_keypoint_[i].codeword;
+        if (table_.occurrences(codeword) > 0) reach = std::max(reach, longest_[static_cast<size_t>(codeword)]);
+      }
+      if (reach < 0) continue;  // no votes
+      const Eigen::Vector3f extent = features_.lrfs[k].colwise().norm().transpose() * reach;
+      const Eigen::Vector3f& o = features_.positions[k];
+      if (!(o - extent).allFinite() || !(o + extent).allFinite()) return false;
+      lo = lo.cwiseMin(o - extent);
+      hi = hi.cwiseMax(o + extent);
+      any = true;
+    }
+    return any;
+  }
 
   // Calls f(chunk) for the votes of keypoint k, chunk by chunk.
   template <typename F>
@@ -220,12 +273,11 @@ class VoteCaster {
       }
       for (uint32_t start = first; start < last; start += kChunk) {
         chunk.size = std::min(kChunk, last - start);
-        const Eigen::Vector3f* v = table_.vectors.data() + start;
-        for (uint32_t j = 0; j < chunk.size; ++j) {
-          chunk.x[j] = o.x() + (r(0, 0) * v[j].x() + r(1, 0) * v[j].y() + r(2, 0) * v[j].z());
-          chunk.y[j] = o.y() + (r(0, 1) * v[j].x() + r(1, 1) * v[j].y() + r(2, 1) * v[j].z());
-          chunk.z[j] = o.z() + (r(0, 2) * v[j].x() + r(1, 2) * v[j].y() + r(2, 2) * v[j].z());
-        }
+        const float *vx = vx_.get() + start, *vy = vy_.get() + start, *vz = vz_.get() + start;
+        // One coordinate per loop: four coefficients, which stay in registers.
+        for (uint32_t j = 0; j < chunk.size; ++j) chunk.x[j] = o.x() + (r(0, 0) * vx[j] + r(1, 0) * vy[j] + r(2, 0) * vz[j]);
+        for (uint32_t j = 0; j < chunk.size; ++j) chunk.y[j] = o.y() + (r(0, 1) * vx[j] + r(1, 1) * vy[j] + r(2, 1) * vz[j]);
+        for (uint32_t j = 0; j < chunk.size; ++j) chunk.z[j] = o.z() + (r(0, 2) * vx[j] + r(1, 2) * vy[j] + r(2, 2) * vz[j]);
         f(static_cast<const VoteChunk&>(chunk));
       }
     }
@@ -239,6 +291,11 @@ class VoteCaster {
   std::vector<uint32_t> offsets_;  // activations of keypoint k: by_keypoint_[offsets_[k] .. offsets_[k+1])
   std::vector<Activation> by_keypoint_;
   size_t votes_ = 0;
+  // The vectors of table_ by coordinate, filled for the activated codewords only.
+  std::unique_ptr<float[]> vx_, vy_, vz_;
+  static constexpr float kNotActivated = -1;
+  std::vector<float> longest_;  // per codeword: its longest vote, or kNotActivated
+  bool finite_ = true;          // every activated codeword's votes
 };
 
 // What a Hough bin keeps of its votes: enough for the peak test and the peak's centre.
@@ -251,44 +308,178 @@ struct Range {
   uint32_t begin = 0, end = 0;
 };
 
+// The bins of a box that holds every vote, in blocks of 4 x 4 x 4 bins allocated when a vote
+// first lands in one and found through a table over the box's blocks: no hashing and no probing,
+// a vote costs one lookup in a table that stays in the cache. A Kinect frame's box is mostly empty
+// (its keypoints lie metres apart, their votes near the surfaces): the memory follows the occupied
+// blocks, not the box. (One array over the whole box, 17 MB per category on tum_desk, was as fast
+// once warm, but the first touch of its pages took as long again as the votes.) Bins are addressed
+// relative to the box's first bin; blocks and the bins in a block run in key order, the last
+// coordinate fastest.
+class BinGrid {
+ public:
+  static constexpr int kShift = 2;  // 2^kShift bins along each axis of a block
+  static constexpr int32_t kMask = (1 << kShift) - 1, kBlockBins = 1 << (3 * kShift);
+
+  BinGrid(const Eigen::Vector3i& first, const Eigen::Vector3i& bins)
+      : first_(first), blocks_((bins.array() + kMask) / (kMask + 1)),
+        table_(static_cast<size_t>(blocks_.prod()), nullptr) {}
+
+  const Eigen::Vector3i& first() const { return first_; }  // coordinates of bin (0, 0, 0)
+  size_t tableSize() const { return table_.size(); }
+  const std::vector<int32_t>& allocated() const { return allocated_; }  // blocks in allocation order
+
+  int32_t blockOf(int32_t x, int32_t y, int32_t z) const {
+    return ((x >> kShift) * blocks_.y() + (y >> kShift)) * blocks_.z() + (z >> kShift);
+  }
+  static int32_t placeOf(int32_t x, int32_t y, int32_t z) {
+    return (x & kMask) << (2 * kShift) | (y & kMask) << kShift | (z & kMask);
+  }
+  Eigen::Vector3i binOf(int32_t block, int32_t place) const {
+    const Eigen::Vector3i b(block / (blocks_.y() * blocks_.z()), block / blocks_.z() % blocks_.y(), block % blocks_.z());
+    return b * (kMask + 1) + Eigen::Vector3i(place >> (2 * kShift), place >> kShift & kMask, place & kMask);
+  }
+
+  BinSum* block(int32_t b) {  // allocated on first use
+    BinSum*& bins = table_[static_cast<size_t>(b)];
+    if (bins == nullptr) bins = allocate(b);
+    return bins;
+  }
+  const BinSum* block(int32_t b) const { return table_[static_cast<size_t>(b)]; }
+  const BinSum* find(const Eigen::Vector3i& bin) const {
+    const BinSum* bins = block(blockOf(bin.x(), bin.y(), bin.z()));
+    return bins == nullptr ? nullptr : bins + placeOf(bin.x(), bin.y(), bin.z());
+  }
+
+ private:
+  static constexpr int32_t kSlabBlocks = 32;  // blocks per allocation: 64 KB
+
+  BinSum* allocate(int32_t b) {
+    if (allocated_.size() % kSlabBlocks == 0) slabs_.emplace_back(new BinSum[kSlabBlocks * kBlockBins]);
+    BinSum* bins = slabs_.back().get() + allocated_.size() % kSlabBlocks * kBlockBins;
+    allocated_.push_back(b);
+    return bins;
+  }
+
+  Eigen::Vector3i first_, blocks_;
+  std::vector<BinSum*> table_;
+  std::vector<int32_t> allocated_;
+  std::vector<std::unique_ptr<BinSum[]>> slabs_;
+};
+
+struct GridBox {
+  Eigen::Vector3i first, bins;  // the first bin's coordinates, bins along each axis
+};
+
+// A grid's bins stay within the range of a BinKey, where a float vote position times
+// 1 / bin_size is off by well under a bin (floats near 2^20 lie 1/8 apart).
+constexpr int64_t kGridBinRange = kBinOffset;
+
+// The box that holds every vote of the caster, one bin wider on each side for the rounding of the
+// vote positions and one more for the neighbours of the peak test. None when it has more than
+// `max_bins` (or kMaxGridBins) bins, more blocks than votes (the table would cost more than the
+// votes), or does not fit the key range.
+std::optional<GridBox> gridBox(const VoteCaster& caster, float inverse_bin_size, size_t max_bins) {
+  Eigen::Vector3f lo, hi;
+  if (max_bins == 0 || !caster.voteBounds(lo, hi)) return std::nullopt;
+  GridBox box;
+  for (int a = 0; a < 3; ++a) {
+    const double low = std::floor(static_cast<double>(lo[a]) * inverse_bin_size) - 2;
+    const double high = std::floor(static_cast<double>(hi[a]) * inverse_bin_size) + 2;
+    if (!(low >= -kGridBinRange && high < kGridBinRange)) return std::nullopt;
+    box.first[a] = static_cast<int32_t>(low);
+    box.bins[a] = static_cast<int32_t>(high - low) + 1;
+  }
+  const double count = static_cast<double>(box.bins.x()) * box.bins.y() * box.bins.z();
+  const double votes = static_cast<double>(caster.votes());
+  const double limit = static_cast<double>(std::min(max_bins, HoughSpace::kMaxGridBins));  // int32 indices
+  if (count > limit || count > BinGrid::kBlockBins * votes) return std::nullopt;
+  return box;
+}
+
+// The blocks and places of a chunk's bins in a grid that holds them.
+struct ChunkCells {
+  alignas(16) int32_t block[kChunk], place[kChunk];
+  ChunkCells(const VoteChunk& chunk, float inverse_bin_size, const BinGrid& grid) {
+    const Eigen::Vector3i& first = grid.first();
+    for (uint32_t j = 0; j < chunk.size; ++j) {
+      const int32_t x = floorToInt(chunk.x[j] * inverse_bin_size) - first.x();
+      const int32_t y = floorToInt(chunk.y[j] * inverse_bin_size) - first.y();
+      const int32_t z = floorToInt(chunk.z[j] * inverse_bin_size) - first.z();
+      block[j] = grid.blockOf(x, y, z);
+      place[j] = BinGrid::placeOf(x, y, z);
+    }
+  }
+};
+
+void add(BinSum& sum, double w, float x, float y, float z) {
+  sum.weight += w;
+  sum.x += w * x;
+  sum.y += w * y;
+  sum.z += w * z;
+}
+
+void add(BinSum& sum, const BinSum& part) {
+  sum.weight += part.weight;
+  sum.x += part.x;
+  sum.y += part.y;
+  sum.z += part.z;
+}
+
 }  // namespace
 
 struct HoughSpace::Impl {
   VoteCaster caster;
-  BinMap<BinSum> bins;
+  float inverse_bin_size;
+  std::optional<BinGrid> grid;  // the bins when set, else `hashed`
+  BinMap<BinSum> hashed;
 };
 
 HoughSpace::HoughSpace(const Model& model, int category_index, const Features& features,
-                       const std::vector<Activation>& activations, const Strategy& strategy)
-    : impl_(new Impl{VoteCaster(model, category_index, features, activations, strategy), {}}) {
-  const VoteCaster& caster = impl_->caster;
-  const float inverse_bin_size = 1.0f / caster.category().bin_size;
+                       const std::vector<Activation>& activations, const Strategy& strategy, size_t max_grid_bins)
+    : impl_(new Impl{VoteCaster(model, category_index, features, activations, strategy), 0, std::nullopt, {}}) {
+  Impl& impl = *impl_;
+  const VoteCaster& caster = impl.caster;
+  const float inverse_bin_size = impl.inverse_bin_size = 1.0f / caster.category().bin_size;
+  if (const std::optional<GridBox> box = gridBox(caster, inverse_bin_size, max_grid_bins)) {
+    auto parts = perThreadRanges<std::optional<BinGrid>>(caster.keypoints(), kKeypointsPerThread,
+                                                         [&](std::optional<BinGrid>& grid, size_t begin, size_t end) {
+      grid.emplace(box->first, box->bins);
+      VoteChunk chunk;
+      for (size_t k = begin; k < end; ++k) {
+        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
+          const ChunkCells in(votes, inverse_bin_size, *grid);
+          for (uint32_t j = 0; j < votes.size; ++j) {
+            add(grid->block(in.block[j])[in.place[j]], votes.weight, votes.x[j], votes.y[j], votes.z[j]);
+          }
+        });
+      }
+    });
+    impl.grid = std::move(parts[0]);
+    for (size_t t = 1; t < parts.size(); ++t) {
+      for (const int32_t b : parts[t]->allocated()) {
+        BinSum* sum = impl.grid->block(b);
+        const BinSum* part = parts[t]->block(b);
+        for (int32_t i = 0; i < BinGrid::kBlockBins; ++i) add(sum[i], part[i]);
+      }
+      parts[t].reset();
+    }
+    return;
+  }
   auto parts = perThreadRanges<BinMap<BinSum>>(caster.keypoints(), kKeypointsPerThread,
                                                [&](BinMap<BinSum>& bins, size_t begin, size_t end) {
     VoteChunk chunk;
     for (size_t k = begin; k < end; ++k) {
       caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
         const ChunkBins in(votes, inverse_bin_size);
-        const double w = votes.weight;
-        for (uint32_t j = 0; j < votes.size; ++j) {
-          BinSum& sum = bins[in.key(j)];
-          sum.weight += w;
-          sum.x += w * votes.x[j];
-          sum.y += w * votes.y[j];
-          sum.z += w * votes.z[j];
-        }
+        for (uint32_t j = 0; j < votes.size; ++j) add(bins[in.key(j)], votes.weight, votes.x[j], votes.y[j], votes.z[j]);
       });
     }
   });
-  impl_->bins = std::move(parts[0]);
+  impl.hashed = std::move(parts[0]);
   for (size_t t = 1; t < parts.size(); ++t) {
     for (const auto& slot : parts[t].slots()) {
-      if (slot.key == kEmptyKey) continue;
-      BinSum& sum = impl_->bins[slot.key];
-      sum.weight += slot.value.weight;
-      sum.x += slot.value.x;
-      sum.y += slot.value.y;
-      sum.z += slot.value.z;
+      if (slot.key != kEmptyKey) add(impl.hashed[slot.key], slot.value);
     }
     parts[t] = {};
   }
@@ -297,106 +488,217 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
 HoughSpace::~HoughSpace() = default;
 
 size_t HoughSpace::votes() const { return impl_->caster.votes(); }
-size_t HoughSpace::bins() const { return impl_->bins.size(); }
+
+size_t HoughSpace::bins() const {
+  if (!impl_->grid) return impl_->hashed.size();
+  size_t occupied = 0;
+  for (const int32_t b : impl_->grid->allocated()) {
+    const BinSum* bins = impl_->grid->block(b);
+    for (int32_t i = 0; i < BinGrid::kBlockBins; ++i) {
+      occupied += bins[i].weight != 0 || bins[i].x != 0 || bins[i].y != 0 || bins[i].z != 0;
+    }
+  }
+  return occupied;
+}
+
+bool HoughSpace::gridded() const { return impl_->grid.has_value(); }
+
+namespace {
+
+// A local maximum worth scoring.
+struct Candidate {
+  BinKey key;
+  Eigen::Vector3f center;
+};
+
+// The peak test of a bin: `neighbour(i)` is its neighbour at neighbourhood()[i] (null when it has
+// no votes), `lower(i)` whether that neighbour's coordinates are the lower. A candidate is a local
+// maximum (ties: the lower coordinates win) whose 27 bins together exceed the threshold: a cube
+// centred inside the bin lies within them.
+template <typename Neighbour, typename Lower>
+bool isCandidate(const BinSum& sum, float threshold, Neighbour&& neighbour, Lower&& lower) {
+  if (!(sum.weight > 0)) return false;
+  double bound = 0;
+  for (size_t i = 0; i < neighbourhood().size(); ++i) {
+    const BinSum* n = neighbour(i);
+    if (n == nullptr) continue;
+    if (n->weight > sum.weight || (n->weight == sum.weight && lower(i))) return false;
+    bound += n->weight;
+  }
+  return bound > threshold;
+}
+
+Candidate candidateAt(BinKey key, const BinSum& sum) {
+  return {key, (Eigen::Vector3d(sum.x, sum.y, sum.z) / sum.weight).cast<float>()};
+}
+
+// What the votes next to the candidates give them, per thread.
+struct Support {
+  std::vector<double> score;
+  std::vector<std::vector<int>> keypoints;  // ascending, each once
+};
+
+}  // namespace
 
 std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
-  const VoteCaster& caster = impl_->caster;
-  const BinMap<BinSum>& bins = impl_->bins;
+  const Impl& impl = *impl_;
+  const VoteCaster& caster = impl.caster;
   const CategoryModel& category = caster.category();
   const float bin_size = category.bin_size, half_edge = bin_size / 2;
 
-  // Local maxima whose 27 bins together could exceed the threshold (the cube around a centre
-  // inside the bin lies within them): the only bins worth scoring.
-  struct Candidate {
-    BinKey key;
-    Eigen::Vector3f center;
-  };
-  const auto& slots = bins.slots();
-  auto found = perThreadRanges<std::vector<Candidate>>(slots.size(), 4096, [&](std::vector<Candidate>& out, size_t begin,
-                                                                               size_t end) {
-    for (size_t i = begin; i < end; ++i) {
-      const auto& slot = slots[i];
-      if (slot.key == kEmptyKey || !(slot.value.weight > 0)) continue;
-      const Eigen::Vector3i bin = binOfKey(slot.key);
-      const double weight = slot.value.weight;
-      double bound = 0;
-      bool maximum = true;
-      for (const Eigen::Vector3i& d : neighbourhood()) {
-        const BinKey key = keyOf(bin + d);
-        const BinSum* n = bins.find(key);
-        if (n == nullptr) continue;
-        if (n->weight > weight || (n->weight == weight && key < slot.key)) {
-          maximum = false;
-          break;
+  // Local maxima whose 27 bins together could exceed the threshold: the only bins worth scoring.
+  std::vector<std::vector<Candidate>> found;
+  if (impl.grid) {
+    const BinGrid& grid = *impl.grid;
+    // Every bin with votes lies at least one bin inside the box, so its neighbours are in it too.
+    const std::vector<int32_t>& blocks = grid.allocated();
+    found = perThreadRanges<std::vector<Candidate>>(blocks.size(), 1024, [&](std::vector<Candidate>& out, size_t begin,
+                                                                            size_t end) {
+      for (size_t i = begin; i < end; ++i) {
+        const BinSum* bins = grid.block(blocks[i]);
+        for (int32_t place = 0; place < BinGrid::kBlockBins; ++place) {
+          if (!(bins[place].weight > 0)) continue;
+          const Eigen::Vector3i bin = grid.binOf(blocks[i], place);
+          const auto neighbour = [&](size_t n) { return grid.find(bin + neighbourhood()[n]); };
+          const auto lower = [](size_t n) { return n < kCentre; };
+          if (isCandidate(bins[place], threshold, neighbour, lower)) {
+            out.push_back(candidateAt(keyOf(grid.first() + bin), bins[place]));
+          }
         }
-        bound += n->weight;
       }
-      if (!maximum || !(bound > threshold)) continue;
-      const Eigen::Vector3d center = Eigen::Vector3d(slot.value.x, slot.value.y, slot.value.z) / weight;
-      out.push_back({slot.key, center.cast<float>()});
-    }
-  });
+    });
+  } else {
+    const BinMap<BinSum>& bins = impl.hashed;
+    const auto& slots = bins.slots();
+    found = perThreadRanges<std::vector<Candidate>>(slots.size(), 4096, [&](std::vector<Candidate>& out, size_t begin,
+                                                                          size_t end) {
+      for (size_t s = begin; s < end; ++s) {
+        const auto& slot = slots[s];
+        if (slot.key == kEmptyKey) continue;
+        const Eigen::Vector3i bin = binOfKey(slot.key);
+        const auto neighbour = [&](size_t i) { return bins.find(keyOf(bin + neighbourhood()[i])); };
+        const auto lower = [&](size_t i) { return keyOf(bin + neighbourhood()[i]) < slot.key; };
+        if (isCandidate(slot.value, threshold, neighbour, lower)) out.push_back(candidateAt(slot.key, slot.value));
+      }
+    });
+  }
   std::vector<Candidate> candidates;
   for (auto& part : found) std::move(part.begin(), part.end(), std::back_inserter(candidates));
   std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) { return a.key < b.key; });
   if (candidates.empty()) return {};
 
-  // Each bin next to a candidate -> the candidates it neighbours (up to 8: maxima are not adjacent).
+  // Each bin a vote inside a candidate's cube can have -> the candidates whose cubes it meets, as
+  // a range of `near`. A cube of edge bin_size meets two bins along each axis (three when the
+  // rounding of a vote's bin straddles a face): 8 of the 27 neighbours of the candidate's bin,
+  // which hold the cube since its centre lies in that bin.
+  const float inverse_bin_size = impl.inverse_bin_size;
   std::vector<std::pair<BinKey, uint32_t>> near;
-  near.reserve(candidates.size() * 27);
+  near.reserve(candidates.size() * 8);
   for (size_t c = 0; c < candidates.size(); ++c) {
     const Eigen::Vector3i bin = binOfKey(candidates[c].key);
-    for (const Eigen::Vector3i& d : neighbourhood()) near.emplace_back(keyOf(bin + d), static_cast<uint32_t>(c));
+    Eigen::Vector3i lo, hi;
+    for (int a = 0; a < 3; ++a) {
+      // A vote's bin is floor(p * inverse_bin_size) in floats, and insideCube compares a float
+      // difference: both off by a few units in the last place, well within the slack.
+      const double center = candidates[c].center[a], slack = (std::abs(center * inverse_bin_size) + 2) * 0x1p-20;
+      lo[a] = std::max(bin[a] - 1, static_cast<int>(std::floor((center - half_edge) * inverse_bin_size - slack)));
+      hi[a] = std::min(bin[a] + 1, static_cast<int>(std::floor((center + half_edge) * inverse_bin_size + slack)));
+    }
+    for (int x = lo.x(); x <= hi.x(); ++x) {
+      for (int y = lo.y(); y <= hi.y(); ++y) {
+        for (int z = lo.z(); z <= hi.z(); ++z) near.emplace_back(keyOf({x, y, z}), static_cast<uint32_t>(c));
+      }
+    }
   }
   std::sort(near.begin(), near.end());
-  BinMap<Range> neighbours_of;
-  // Most votes land far from every candidate. A 32 KB bitmap of the bins near candidates (one
-  // bit per Fibonacci hash of the key) stays in L1 and turns those votes away before the
-  // full-mix hash probe into neighbours_of, which misses the cache on large scenes.
-  constexpr int kFilterBits = 18;
-  std::vector<uint64_t> near_filter(size_t{1} << (kFilterBits - 6), 0);
-  const auto filterBit = [](BinKey key) { return (key * 0x9E3779B97F4A7C15ull) >> (64 - kFilterBits); };
+  std::vector<Range> ranges;  // one per bin meeting a cube
   for (uint32_t i = 0; i < near.size(); ++i) {
-    Range& range = neighbours_of[near[i].first];
-    if (range.end == 0) range.begin = i;
-    range.end = i + 1;
-    const uint64_t bit = filterBit(near[i].first);
-    near_filter[bit >> 6] |= uint64_t{1} << (bit & 63);
+    if (i == 0 || near[i].first != near[i - 1].first) ranges.push_back({i, i});
+    ranges.back().end = i + 1;
   }
 
-  // Cast the votes again and look only at those next to a candidate. (Skipping codewords whose
-  // votes are all too short to reach a candidate saved nothing measurable in room scans: votes
-  // reach across the objects, candidates are all over the room.)
-  const float inverse_bin_size = 1.0f / bin_size;
-  struct Support {
-    std::vector<double> score;
-    std::vector<std::vector<int>> keypoints;  // ascending, each once
-  };
-  auto parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
-    s.score.assign(candidates.size(), 0.0);
-    s.keypoints.resize(candidates.size());
-    VoteChunk chunk;
-    for (size_t k = begin; k < end; ++k) {
-      caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
-        const ChunkBins in(votes, inverse_bin_size);
-        for (uint32_t j = 0; j < votes.size; ++j) {
-          const BinKey key = in.key(j);
-          const uint64_t bit = filterBit(key);
-          if (!(near_filter[bit >> 6] >> (bit & 63) & 1)) continue;
-          const Range* range = neighbours_of.find(key);
-          if (range == nullptr) continue;
-          const Eigen::Vector3f p = votes.position(j);
-          for (uint32_t i = range->begin; i < range->end; ++i) {
-            const uint32_t c = near[i].second;
-            if (!insideCube(p, candidates[c].center, half_edge)) continue;
-            s.score[c] += votes.weight;
-            auto& keypoints = s.keypoints[c];
-            if (keypoints.empty() || keypoints.back() != static_cast<int>(k)) keypoints.push_back(static_cast<int>(k));
-          }
-        }
-      });
+  // Cast the votes again and look only at those in the bins of a candidate's cube. (Skipping
+  // codewords whose votes are all too short to reach a candidate saved nothing measurable in room
+  // scans: votes reach across the objects, candidates are all over the room.)
+  const auto support = [&](Support& s, const VoteChunk& votes, uint32_t j, const Range& range, int k) {
+    const Eigen::Vector3f p = votes.position(j);
+    for (uint32_t i = range.begin; i < range.end; ++i) {
+      const uint32_t c = near[i].second;
+      const bool inside = insideCube(p, candidates[c].center, half_edge);
+      s.score[c] += inside ? votes.weight : 0.0f;  // adding zero to the sum changes nothing
+      auto& keypoints = s.keypoints[c];
+      if (inside & (keypoints.empty() || keypoints.back() != k)) keypoints.push_back(k);
     }
-  });
+  };
+  std::vector<Support> parts;
+  if (impl.grid) {
+    // The ranges of the bins of a block meeting a cube, 1 + index into `ranges` (0: none), in
+    // blocks of near_ranges; the other blocks share the first, all zeros.
+    const BinGrid& grid = *impl.grid;
+    std::vector<uint32_t> near_block(grid.tableSize(), 0);
+    std::vector<uint32_t> near_ranges(BinGrid::kBlockBins, 0);
+    for (uint32_t r = 0; r < ranges.size(); ++r) {
+      const Eigen::Vector3i bin = binOfKey(near[ranges[r].begin].first) - grid.first();
+      uint32_t& slot = near_block[static_cast<size_t>(grid.blockOf(bin.x(), bin.y(), bin.z()))];
+      if (slot == 0) {
+        slot = static_cast<uint32_t>(near_ranges.size() / BinGrid::kBlockBins);
+        near_ranges.resize(near_ranges.size() + BinGrid::kBlockBins, 0);
+      }
+      const auto place = static_cast<uint32_t>(BinGrid::placeOf(bin.x(), bin.y(), bin.z()));
+      near_ranges[slot * BinGrid::kBlockBins + place] = r + 1;
+    }
+    parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
+      s.score.assign(candidates.size(), 0.0);
+      s.keypoints.resize(candidates.size());
+      VoteChunk chunk;
+      for (size_t k = begin; k < end; ++k) {
+        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
+          const ChunkCells in(votes, inverse_bin_size, grid);
+          // Most votes miss every cube: the ranges of the others are gathered without branching.
+          uint32_t hit[kChunk], range[kChunk], hits = 0;
+          for (uint32_t j = 0; j < votes.size; ++j) {
+            const uint32_t r = near_ranges[near_block[static_cast<size_t>(in.block[j])] * BinGrid::kBlockBins +
+                                           static_cast<uint32_t>(in.place[j])];
+            hit[hits] = j;
+            range[hits] = r;
+            hits += r != 0;
+          }
+          for (uint32_t h = 0; h < hits; ++h) support(s, votes, hit[h], ranges[range[h] - 1], static_cast<int>(k));
+        });
+      }
+    });
+  } else {
+    BinMap<uint32_t> range_of;  // 1 + the range of a bin
+    // Most votes land far from every candidate. A 32 KB bitmap of the bins near candidates (one
+    // bit per Fibonacci hash of the key) stays in L1 and turns those votes away before the
+    // full-mix hash probe into range_of, which misses the cache on large scenes.
+    constexpr int kFilterBits = 18;
+    std::vector<uint64_t> near_filter(size_t{1} << (kFilterBits - 6), 0);
+    const auto filterBit = [](BinKey key) { return (key * 0x9E3779B97F4A7C15ull) >> (64 - kFilterBits); };
+    for (uint32_t r = 0; r < ranges.size(); ++r) {
+      const BinKey key = near[ranges[r].begin].first;
+      range_of[key] = r + 1;
+      const uint64_t bit = filterBit(key);
+      near_filter[bit >> 6] |= uint64_t{1} << (bit & 63);
+    }
+    parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
+      s.score.assign(candidates.size(), 0.0);
+      s.keypoints.resize(candidates.size());
+      VoteChunk chunk;
+      for (size_t k = begin; k < end; ++k) {
+        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
+          const ChunkBins in(votes, inverse_bin_size);
+          for (uint32_t j = 0; j < votes.size; ++j) {
+            const BinKey key = in.key(j);
+            const uint64_t bit = filterBit(key);
+            if (!(near_filter[bit >> 6] >> (bit & 63) & 1)) continue;
+            const uint32_t* r = range_of.find(key);
+            if (r != nullptr) support(s, votes, j, ranges[*r - 1], static_cast<int>(k));
+          }
+        });
+      }
+    });
+  }
 
   const Features& features = caster.features();
   std::vector<Hypothesis> peaks;

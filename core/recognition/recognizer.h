@@ -1,6 +1,7 @@
 #pragma once
 // Recognition: features -> codeword activations -> weighted votes in a 3D Hough space per
 // category -> every local maximum above the threshold -> box selection -> hypotheses.
+#include <cstddef>
 #include <memory>
 #include <optional>
 #include <string>
@@ -85,9 +86,19 @@ float scoreAt(const std::vector<Vote>& votes, const Eigen::Vector3f& center, flo
 // Keeps references to its arguments, which must outlive it.
 class HoughSpace {
  public:
+  // The bins are kept in blocks of 4 x 4 x 4 found through a table over the box that holds every
+  // vote (8 bytes per block of the box, 2 MB per thread at this limit; 2 KB per block with votes)
+  // when the box has at most this many bins and no more blocks than votes, else in a hash map.
+  // Past the limit (a scan hundreds of metres across, centimetre bins over a building) the table
+  // would outweigh the occupied bins.
+  static constexpr size_t kMaxGridBins = size_t{1} << 24;
+
   // Throws Error(kInvalidInput) for an activation outside the features or the vote table.
+  // `max_grid_bins` lowers the limit, 0 always hashes the bins (tests); the results do not
+  // depend on it.
   HoughSpace(const Model& model, int category_index, const Features& features,
-             const std::vector<Activation>& activations, const Strategy& strategy);
+             const std::vector<Activation>& activations, const Strategy& strategy,
+             size_t max_grid_bins = kMaxGridBins);
   ~HoughSpace();
   HoughSpace(const HoughSpace&) = delete;
   HoughSpace& operator=(const HoughSpace&) = delete;
@@ -95,12 +106,13 @@ class HoughSpace {
   // Every bin that is a local maximum of its 26 neighbours (ties: the lower bin coordinates
   // win), centred at the weighted mean of its votes and scored like scoreAt() there, when the
   // score exceeds `threshold`; within bin_size of a better one it is dropped. Best first.
-  // The support is found by casting the votes again and keeping only those that land next to
-  // a peak.
+  // The score and support are found by casting the votes again and keeping only those that land
+  // in a bin a peak's cube meets.
   std::vector<Hypothesis> findPeaks(float threshold) const;
 
   size_t votes() const;  // cast into the space
   size_t bins() const;   // occupied
+  bool gridded() const;  // the bins are in a grid rather than a hash map
 
  private:
   struct Impl;

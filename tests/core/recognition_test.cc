@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 #include <map>
 #include <numeric>
@@ -202,8 +203,7 @@ std::vector<Hypothesis> referencePeaks(const std::vector<Vote>& votes, const Fea
 
 // Random scene: three objects whose keypoints vote for their centres, and clutter keypoints
 // activating codewords with random votes; enough keypoints to split them between threads.
-TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
-  std::mt19937 rng(7);
+HandMadeObject randomScene(std::mt19937& rng) {
   std::uniform_real_distribution<float> unit(-1.0f, 1.0f), distance(0.0f, 0.6f);
   HandMadeObject scene;
   for (const Eigen::Vector3f& center : {Eigen::Vector3f(0, 0, 0.5f), Eigen::Vector3f(1.2f, 0.4f, 0.4f),
@@ -230,43 +230,157 @@ TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
       scene.activations.push_back({k, object_codewords + static_cast<int>(rng() % clutter_codewords), distance(rng)});
     }
   }
+  return scene;
+}
+
+// Thresholds low enough for clutter maxima (CW: many equal bin weights, so the tie rule counts).
+const std::pair<VoteWeighting, float> kRandomSceneThresholds[] = {
+    {VoteWeighting::kCategorization, 7.0f}, {VoteWeighting::kLocalization, 0.15f}, {VoteWeighting::kActivation, 0.12f}};
+
+// Both ways of keeping the bins: the grid over the votes' box (the default here) and the hash map.
+TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
+  std::mt19937 rng(7);
+  const HandMadeObject scene = randomScene(rng);
   const Model m = modelWithVotes(scene.votes);
   const CategoryModel& category = m.categories[0];
-  // Thresholds low enough for clutter maxima (CW: many equal bin weights, so the tie rule counts).
-  for (auto [weighting, threshold] : {std::pair{VoteWeighting::kCategorization, 7.0f},
-                                      std::pair{VoteWeighting::kLocalization, 0.15f},
-                                      std::pair{VoteWeighting::kActivation, 0.12f}}) {
+  for (auto [weighting, threshold] : kRandomSceneThresholds) {
+    for (const size_t max_grid_bins : {HoughSpace::kMaxGridBins, size_t{0}}) {
+      SCOPED_TRACE(std::string(toString(weighting)) + (max_grid_bins > 0 ? " grid" : " hashed"));
+      const Strategy st = strategy(weighting);
+      const auto votes = castVotes(m, 0, scene.features, scene.activations, st);
+      const auto expected = referencePeaks(votes, scene.features, category, threshold);
+      const HoughSpace hough(m, 0, scene.features, scene.activations, st, max_grid_bins);
+      EXPECT_EQ(hough.gridded(), max_grid_bins > 0);
+      EXPECT_EQ(hough.votes(), votes.size());
+      const auto actual = hough.findPeaks(threshold);
+      ASSERT_GE(expected.size(), 10u);  // the objects and clutter maxima
+      ASSERT_EQ(actual.size(), expected.size());
+      for (size_t i = 0; i < expected.size(); ++i) {
+        SCOPED_TRACE(i);
+        // Matched by centre, not by rank: two peaks whose scores differ only in the last bits
+        // (the reference sums its votes in another order) may swap places.
+        size_t match = 0;
+        for (size_t j = 1; j < actual.size(); ++j) {
+          if ((actual[j].center - expected[i].center).norm() < (actual[match].center - expected[i].center).norm()) match = j;
+        }
+        const Hypothesis& a = actual[match];
+        EXPECT_LT((a.center - expected[i].center).norm(), 1e-5f);
+        EXPECT_NEAR(a.score, expected[i].score, 1e-5f * expected[i].score);
+        EXPECT_EQ(a.support_keypoints, expected[i].support_keypoints);
+        EXPECT_EQ(a.support, expected[i].support);
+        EXPECT_EQ(a.category, category.name);
+      }
+      // Same input, same answer: thread scheduling must not leak into the sums.
+      const auto again = HoughSpace(m, 0, scene.features, scene.activations, st, max_grid_bins).findPeaks(threshold);
+      ASSERT_EQ(again.size(), actual.size());
+      for (size_t i = 0; i < again.size(); ++i) {
+        EXPECT_EQ(again[i].score, actual[i].score);
+        EXPECT_EQ(again[i].center, actual[i].center);
+      }
+    }
+  }
+}
+
+void expectSameHypotheses(const std::vector<Hypothesis>& a, const std::vector<Hypothesis>& b) {
+  ASSERT_EQ(a.size(), b.size());
+  for (size_t i = 0; i < a.size(); ++i) {
+    SCOPED_TRACE(i);
+    EXPECT_EQ(a[i].category, b[i].category);
+    EXPECT_EQ(a[i].score, b[i].score);
+    EXPECT_EQ(a[i].center, b[i].center);
+    EXPECT_EQ(a[i].support, b[i].support);
+    EXPECT_EQ(a[i].support_keypoints, b[i].support_keypoints);
+    EXPECT_EQ(a[i].box.center, b[i].box.center);
+    EXPECT_EQ(a[i].passed_selection, b[i].passed_selection);
+  }
+}
+
+// The grid must hold every vote, also of local reference frames that are not rotations (the
+// bound on a vote's reach then takes the frame's column norms), and sum the bins exactly like the
+// hash map: the same votes in the same order, so the same bits.
+TEST(FindPeaks, GridAndHashedBinsGiveTheSameHypotheses) {
+  std::mt19937 rng(11);
+  HandMadeObject scene = randomScene(rng);
+  std::uniform_real_distribution<float> scale(0.5f, 2.0f);
+  for (size_t k = 0; k < scene.features.size(); k += 3) {
+    scene.features.lrfs[k] = scene.features.lrfs[k] * Eigen::Vector3f(scale(rng), scale(rng), scale(rng)).asDiagonal();
+    scene.features.lrfs[k](0, 1) += 0.3f;  // no longer orthogonal either
+  }
+  const Model m = modelWithVotes(scene.votes);
+  for (auto [weighting, threshold] : kRandomSceneThresholds) {
     SCOPED_TRACE(toString(weighting));
     const Strategy st = strategy(weighting);
-    const auto votes = castVotes(m, 0, scene.features, scene.activations, st);
-    const auto expected = referencePeaks(votes, scene.features, category, threshold);
-    const HoughSpace hough(m, 0, scene.features, scene.activations, st);
-    EXPECT_EQ(hough.votes(), votes.size());
-    const auto actual = hough.findPeaks(threshold);
-    ASSERT_GE(expected.size(), 10u);  // the objects and clutter maxima
-    ASSERT_EQ(actual.size(), expected.size());
-    for (size_t i = 0; i < expected.size(); ++i) {
-      SCOPED_TRACE(i);
-      // Matched by centre, not by rank: two peaks whose scores differ only in the last bits
-      // (the reference sums its votes in another order) may swap places.
-      size_t match = 0;
-      for (size_t j = 1; j < actual.size(); ++j) {
-        if ((actual[j].center - expected[i].center).norm() < (actual[match].center - expected[i].center).norm()) match = j;
-      }
-      const Hypothesis& a = actual[match];
-      EXPECT_LT((a.center - expected[i].center).norm(), 1e-5f);
-      EXPECT_NEAR(a.score, expected[i].score, 1e-5f * expected[i].score);
-      EXPECT_EQ(a.support_keypoints, expected[i].support_keypoints);
-      EXPECT_EQ(a.support, expected[i].support);
-      EXPECT_EQ(a.category, category.name);
-    }
-    // Same input, same answer: thread scheduling must not leak into the sums.
-    const auto again = HoughSpace(m, 0, scene.features, scene.activations, st).findPeaks(threshold);
-    ASSERT_EQ(again.size(), actual.size());
-    for (size_t i = 0; i < again.size(); ++i) {
-      EXPECT_EQ(again[i].score, actual[i].score);
-      EXPECT_EQ(again[i].center, actual[i].center);
-    }
+    const HoughSpace grid(m, 0, scene.features, scene.activations, st);
+    const HoughSpace hashed(m, 0, scene.features, scene.activations, st, 0);
+    ASSERT_TRUE(grid.gridded());
+    ASSERT_FALSE(hashed.gridded());
+    EXPECT_EQ(grid.bins(), hashed.bins());
+    const auto peaks = grid.findPeaks(threshold);
+    EXPECT_GE(peaks.size(), 10u);
+    expectSameHypotheses(peaks, hashed.findPeaks(threshold));
+  }
+}
+
+// Keypoints a kilometre apart: the votes' box has 10^9 bins, far more than kMaxGridBins and than
+// there are votes, so the bins are hashed and only the occupied ones kept.
+TEST(FindPeaks, FarApartKeypointsFallBackToHashedBins) {
+  const Eigen::Vector3f a(0, 0, 0.5f), b(1000.0f, 1000.0f, 0.5f);
+  HandMadeObject first = handMadeObject(a, 30, 0, 0.02f), second = handMadeObject(b, 20, 30, 0.02f);
+  Features f = first.features;
+  f.positions.insert(f.positions.end(), second.features.positions.begin(), second.features.positions.end());
+  f.lrfs.insert(f.lrfs.end(), second.features.lrfs.begin(), second.features.lrfs.end());
+  auto table = first.votes;
+  table.insert(table.end(), second.votes.begin(), second.votes.end());
+  auto activations = first.activations;
+  activations.insert(activations.end(), second.activations.begin(), second.activations.end());
+  const Model m = modelWithVotes(table);
+  const HoughSpace hough(m, 0, f, activations, strategy(VoteWeighting::kCategorization));
+  EXPECT_FALSE(hough.gridded());
+  const auto peaks = hough.findPeaks(5.0f);
+  ASSERT_EQ(peaks.size(), 2u);
+  EXPECT_LT((peaks[0].center - a).norm(), 0.05f);
+  EXPECT_LT((peaks[1].center - b).norm(), 0.05f);
+  EXPECT_EQ(peaks[0].support, 30);
+  EXPECT_EQ(peaks[1].support, 20);
+}
+
+// Votes on the faces of the cube around a peak count, votes a float step outside do not, also
+// when they fall in other bins than the peak's (only the bins the cube meets are looked at).
+TEST(FindPeaks, VotesOnTheFacesOfTheCubeCount) {
+  // Keypoints at the origin with identity frames: each vote lands exactly at its stored vector.
+  // Bins of 0.5 m: the peak's bin [0, 0.5)^3 holds ten votes at its centre, so the cube is
+  // [0, 0.5]^3, whose upper faces lie in the next bins.
+  // One float step beyond the faces as seen from the centre (steps of 2^-25 around 0.25, the
+  // distance to a face; 2^-24 around 0.5).
+  const float outside_high = std::nextafter(0.5f, 1.0f), outside_low = -0x1p-25f;
+  std::vector<std::vector<Eigen::Vector3f>> votes(10, {Eigen::Vector3f(0.25f, 0.25f, 0.25f)});
+  for (const Eigen::Vector3f& v : {Eigen::Vector3f(0.5f, 0.25f, 0.25f), Eigen::Vector3f(0.0f, 0.5f, 0.5f),
+                                   Eigen::Vector3f(0.5f, 0.5f, 0.5f)}) {
+    votes.push_back({v});  // on a face, an edge, a corner: inside
+  }
+  for (const Eigen::Vector3f& v : {Eigen::Vector3f(outside_high, 0.25f, 0.25f), Eigen::Vector3f(0.25f, outside_low, 0.25f),
+                                   Eigen::Vector3f(0.5f, 0.5f, outside_high)}) {
+    votes.push_back({v});
+  }
+  Features f;
+  std::vector<Activation> activations;
+  for (size_t k = 0; k < votes.size(); ++k) {
+    f.positions.push_back(Eigen::Vector3f::Zero());
+    f.lrfs.push_back(Eigen::Matrix3f::Identity());
+    activations.push_back({static_cast<int>(k), static_cast<int>(k), 0.0f});
+  }
+  const Model m = modelWithVotes(votes, 0.5f);
+  const Strategy cw = strategy(VoteWeighting::kCategorization);
+  const auto cast = castVotes(m, 0, f, activations, cw);
+  for (const size_t max_grid_bins : {HoughSpace::kMaxGridBins, size_t{0}}) {
+    const HoughSpace hough(m, 0, f, activations, cw, max_grid_bins);
+    EXPECT_EQ(hough.gridded(), max_grid_bins > 0);
+    const auto peaks = hough.findPeaks(5.0f);
+    ASSERT_EQ(peaks.size(), 1u);
+    EXPECT_EQ(peaks[0].center, Eigen::Vector3f(0.25f, 0.25f, 0.25f));
+    EXPECT_EQ(peaks[0].score, 13.0f);
+    EXPECT_EQ(peaks[0].support, 13);
+    EXPECT_EQ(peaks[0].score, scoreAt(cast, peaks[0].center, 0.5f));
   }
 }
 
