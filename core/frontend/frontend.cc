@@ -4,12 +4,7 @@
 #include <pcl/common/eigen.h>
 #include <pcl/features/boundary.h>
 #include <pcl/features/normal_3d.h>
-#include <pcl/features/shot_lrf_omp.h>
-#include <pcl/features/shot_omp.h>
 #include <pcl/filters/voxel_grid.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include <Eigen/Eigenvalues>
 #include <algorithm>
@@ -19,11 +14,10 @@
 
 #include "core/common/error.h"
 #include "core/frontend/neighbour_grid.h"
+#include "core/frontend/shot.h"
 
 namespace ism {
 namespace {
-
-constexpr int kShotLength = 352;
 
 void requirePositive(float value, const char* name) {
   if (!(std::isfinite(value) && value > 0.0f)) {
@@ -111,17 +105,6 @@ void requireAtLeast(int value, int minimum, const char* name) {
   }
 }
 
-// PCL's OpenMP estimators take a thread count where 0 means every core, ignoring OMP_NUM_THREADS
-// and omp_set_num_threads(). Passing OpenMP's own setting lets a caller (a benchmark on one
-// core, a server worker sharing the machine with others) decide.
-unsigned int threadCount() {
-#ifdef _OPENMP
-  return static_cast<unsigned int>(std::max(1, omp_get_max_threads()));
-#else
-  return 1;
-#endif
-}
-
 // A polynomial of higher order than this over a 2 cm neighbourhood of ~12 voxel centroids fits
 // noise; the bound also keeps the normal equations in a fixed-size matrix.
 constexpr int kMaxPolynomialOrder = 4;
@@ -187,13 +170,6 @@ Eigen::Vector3d projectMls(const XyzCloud& cloud, int i, const std::vector<int>&
   // neighbours either.
   if (!std::isfinite(c[0]) || std::abs(c[0]) > params.radius) return foot;
   return foot + c[0] * normal;
-}
-
-bool isFiniteFrame(const pcl::ReferenceFrame& frame) {
-  for (float v : frame.rf) {
-    if (!std::isfinite(v)) return false;
-  }
-  return true;
 }
 
 }  // namespace
@@ -413,95 +389,7 @@ std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, con
 }
 
 Features describe(const Surface& surface, const std::vector<int>& keypoints, const ShotParams& params) {
-  requirePositive(params.radius, "shot.radius");
-  Features features;
-  features.descriptors.resize(0, kShotLength);
-  if (keypoints.empty()) return features;
-  for (int k : keypoints) {
-    if (k < 0 || static_cast<size_t>(k) >= surface.size()) {
-      throw Error(ErrorCode::kInvalidInput, "keypoint index " + std::to_string(k) + " is outside the surface of " +
-                                                std::to_string(surface.size()) + " points");
-    }
-  }
-  const auto view = borrow(surface);
-  // One grid serves the neighbour count, the LRF and SHOT (PCL rebuilds a search structure only
-  // when its input cloud changes).
-  auto tree = std::make_shared<GridSearch<pcl::PointNormal>>(params.radius);
-  tree->setInputCloud(view);
-
-  // PCL's LRF needs 5 support points; fewer than min_neighbours gives an unstable frame whose
-  // votes would be noise, so such keypoints are dropped before any work is spent on them.
-  pcl::IndicesPtr supported(new pcl::Indices);
-  supported->reserve(keypoints.size());
-  {
-    const int enough = std::max(params.min_neighbours, 1);
-    pcl::Indices neighbours;
-    std::vector<float> distances;
-    for (int k : keypoints) {
-      // Counting stops at `enough`, which keeps the check cheap at SHOT's large radius.
-      if (tree->radiusSearch(surface[static_cast<size_t>(k)], params.radius, neighbours, distances,
-                             static_cast<unsigned int>(enough)) >= enough) {
-        supported->push_back(k);
-      }
-    }
-  }
-  if (supported->empty()) return features;
-
-  pcl::SHOTLocalReferenceFrameEstimationOMP<pcl::PointNormal, pcl::ReferenceFrame> lrf_estimator;
-  lrf_estimator.setInputCloud(view);
-  lrf_estimator.setIndices(supported);
-  lrf_estimator.setSearchSurface(view);
-  lrf_estimator.setSearchMethod(tree);
-  lrf_estimator.setRadiusSearch(params.radius);
-  lrf_estimator.setNumberOfThreads(threadCount());
-  pcl::PointCloud<pcl::ReferenceFrame> all_frames;
-  lrf_estimator.compute(all_frames);
-
-  pcl::IndicesPtr framed(new pcl::Indices);
-  pcl::PointCloud<pcl::ReferenceFrame>::Ptr frames(new pcl::PointCloud<pcl::ReferenceFrame>);
-  for (size_t i = 0; i < supported->size(); ++i) {
-    if (!isFiniteFrame(all_frames[i])) continue;
-    framed->push_back((*supported)[i]);
-    frames->push_back(all_frames[i]);
-  }
-  if (framed->empty()) return features;
-
-  // Handing SHOT the frames computed above guarantees that the LRF stored with each descriptor
-  // is the one the descriptor was built in (the votes are expressed in it).
-  pcl::SHOTEstimationOMP<pcl::PointNormal, pcl::PointNormal, pcl::SHOT352> shot;
-  shot.setInputCloud(view);
-  shot.setIndices(framed);
-  shot.setSearchSurface(view);
-  shot.setInputNormals(view);
-  shot.setInputReferenceFrames(frames);
-  shot.setSearchMethod(tree);
-  shot.setRadiusSearch(params.radius);
-  shot.setNumberOfThreads(threadCount());
-  pcl::PointCloud<pcl::SHOT352> descriptors;
-  shot.compute(descriptors);
-
-  features.positions.reserve(framed->size());
-  features.lrfs.reserve(framed->size());
-  features.descriptors.resize(static_cast<Eigen::Index>(framed->size()), kShotLength);
-  Eigen::Index kept = 0;
-  for (size_t i = 0; i < framed->size(); ++i) {
-    const Eigen::Map<const Eigen::Matrix<float, 1, kShotLength>> d(descriptors[i].descriptor);
-    // PCL normalises SHOT to unit length (measured within 1.2e-7 on a Kinect frame); NaN
-    // propagates into the norm, and a zero histogram means no support point fell in any bin.
-    const float norm = d.norm();
-    if (!std::isfinite(norm) || norm == 0.0f) continue;
-    features.descriptors.row(kept++) = d;
-    const pcl::PointNormal& p = surface[(*framed)[i]];
-    features.positions.emplace_back(p.x, p.y, p.z);
-    const pcl::ReferenceFrame& f = (*frames)[i];
-    Eigen::Matrix3f lrf;
-    lrf.row(0) = Eigen::Vector3f(f.x_axis[0], f.x_axis[1], f.x_axis[2]);
-    lrf.row(1) = Eigen::Vector3f(f.y_axis[0], f.y_axis[1], f.y_axis[2]);
-    lrf.row(2) = Eigen::Vector3f(f.z_axis[0], f.z_axis[1], f.z_axis[2]);
-    features.lrfs.push_back(lrf);
-  }
-  features.descriptors.conservativeResize(kept, kShotLength);
-  return features;
+  return computeShot(surface, keypoints, params);
 }
 
 FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params, bool apply_smoothing,
