@@ -77,38 +77,51 @@ void NeighbourGrid::build(std::vector<Eigen::Vector3f> points, float cell_size) 
     keyed[i] = {keyOf(c.x(), c.y(), c.z()), static_cast<int>(i)};
   }
   std::sort(keyed.begin(), keyed.end());
-  sorted_.resize(points.size());
+  x_.resize(points.size());
+  y_.resize(points.size());
+  z_.resize(points.size());
   original_index_.resize(points.size());
   cells_.clear();
   for (size_t i = 0; i < keyed.size(); ++i) {
-    sorted_[i] = points[keyed[i].second];
+    const Eigen::Vector3f& p = points[static_cast<size_t>(keyed[i].second)];
+    x_[i] = p.x();
+    y_[i] = p.y();
+    z_[i] = p.z();
     original_index_[i] = keyed[i].second;
     if (cells_.empty() || cells_.back().key != keyed[i].first) {
       cells_.push_back({keyed[i].first, static_cast<uint32_t>(i), static_cast<uint32_t>(i)});
     }
     cells_.back().end = static_cast<uint32_t>(i + 1);
   }
+  std::vector<Range> columns;
+  for (size_t c = 0; c < cells_.size(); ++c) {
+    const uint64_t column = cells_[c].key & ~static_cast<uint64_t>(kMaxCell);
+    if (columns.empty() || columns.back().key != column) {
+      columns.push_back({column, static_cast<uint32_t>(c), static_cast<uint32_t>(c)});
+    }
+    columns.back().end = static_cast<uint32_t>(c + 1);
+  }
   size_t table_size = 16;
   table_shift_ = 60;
-  while (table_size < 2 * cells_.size()) {
+  while (table_size < 2 * columns.size()) {
     table_size *= 2;
     --table_shift_;
   }
-  table_.assign(table_size, Range{kEmptyKey, 0, 0});
+  columns_.assign(table_size, Range{kEmptyKey, 0, 0});
   table_mask_ = table_size - 1;
-  for (const Range& cell : cells_) {
-    uint64_t slot = slotOf(cell.key);
-    while (table_[slot].key != kEmptyKey) slot = (slot + 1) & table_mask_;
-    table_[slot] = cell;
+  for (const Range& column : columns) {
+    uint64_t slot = slotOf(column.key);
+    while (columns_[slot].key != kEmptyKey) slot = (slot + 1) & table_mask_;
+    columns_[slot] = column;
   }
 }
 
-const NeighbourGrid::Range* NeighbourGrid::find(uint64_t key) const {
+const NeighbourGrid::Range* NeighbourGrid::findColumn(uint64_t column_key) const {
   if (cells_.empty()) return nullptr;
   // The table holds the ranges themselves, so a lookup touches one cache line.
-  for (uint64_t slot = slotOf(key);; slot = (slot + 1) & table_mask_) {
-    const Range& r = table_[slot];
-    if (r.key == key) return &r;
+  for (uint64_t slot = slotOf(column_key);; slot = (slot + 1) & table_mask_) {
+    const Range& r = columns_[slot];
+    if (r.key == column_key) return &r;
     if (r.key == kEmptyKey) return nullptr;
   }
 }
@@ -117,6 +130,26 @@ int NeighbourGrid::span(float radius) const {
   const double cells = std::ceil(static_cast<double>(radius) * inverse_cell_);
   // A query anywhere in its cell reaches at most ceil(r / cell) cells to each side.
   return static_cast<int>(std::clamp(cells, 1.0, static_cast<double>(kMaxCell)));
+}
+
+template <class Visit>
+void NeighbourGrid::forEachCellNear(int64_t cx, int64_t cy, int64_t cz, int s, Visit&& visit) const {
+  const uint64_t z_first = static_cast<uint64_t>(std::max<int64_t>(0, cz - s));
+  const uint64_t z_last = static_cast<uint64_t>(std::min<int64_t>(kMaxCell, cz + s));
+  for (int64_t x = std::max<int64_t>(0, cx - s); x <= std::min<int64_t>(kMaxCell, cx + s); ++x) {
+    for (int64_t y = std::max<int64_t>(0, cy - s); y <= std::min<int64_t>(kMaxCell, cy + s); ++y) {
+      const uint64_t column_key = keyOf(x, y, 0);
+      const Range* column = findColumn(column_key);
+      if (column == nullptr) continue;
+      // A column seen edge-on (a floor receding from the sensor) holds many cells: search, do not scan.
+      const auto first = std::lower_bound(cells_.begin() + column->begin, cells_.begin() + column->end,
+                                          column_key | z_first,
+                                          [](const Range& cell, uint64_t key) { return cell.key < key; });
+      for (auto cell = first; cell != cells_.begin() + column->end && cell->key <= (column_key | z_last); ++cell) {
+        visit(*cell);
+      }
+    }
+  }
 }
 
 template <class Visit>
@@ -130,13 +163,7 @@ void NeighbourGrid::forEachCellAround(const Eigen::Vector3f& query, float radius
     return;
   }
   const Eigen::Array3i c = cellOf(query);
-  for (int64_t x = std::max<int64_t>(0, c.x() - s); x <= std::min<int64_t>(kMaxCell, c.x() + s); ++x) {
-    for (int64_t y = std::max<int64_t>(0, c.y() - s); y <= std::min<int64_t>(kMaxCell, c.y() + s); ++y) {
-      for (int64_t z = std::max<int64_t>(0, c.z() - s); z <= std::min<int64_t>(kMaxCell, c.z() + s); ++z) {
-        if (const Range* range = find(keyOf(x, y, z))) visit(*range);
-      }
-    }
-  }
+  forEachCellNear(c.x(), c.y(), c.z(), s, visit);
 }
 
 size_t NeighbourGrid::radiusSearch(const Eigen::Vector3f& query, float radius, std::vector<int>& indices,
@@ -149,7 +176,7 @@ size_t NeighbourGrid::radiusSearch(const Eigen::Vector3f& query, float radius, s
     bool full = false;
     forEachCellAround(query, radius, [&](const Range& range) {
       for (uint32_t i = range.begin; i < range.end && !full; ++i) {
-        const float d2 = (sorted_[i] - query).squaredNorm();
+        const float d2 = squaredDistance(i, query);
         if (d2 > r2) continue;
         indices.push_back(original_index_[i]);
         squared_distances.push_back(d2);
@@ -164,7 +191,7 @@ size_t NeighbourGrid::radiusSearch(const Eigen::Vector3f& query, float radius, s
     indices.resize(found + (range.end - range.begin));
     squared_distances.resize(indices.size());
     for (uint32_t i = range.begin; i < range.end; ++i) {
-      const float d2 = (sorted_[i] - query).squaredNorm();
+      const float d2 = squaredDistance(i, query);
       indices[found] = original_index_[i];
       squared_distances[found] = d2;
       found += d2 <= r2;
@@ -188,7 +215,7 @@ int NeighbourGrid::nearest(const Eigen::Vector3f& query, float max_distance) con
   int best_index = -1;
   forEachCellAround(query, max_distance, [&](const Range& range) {
     for (uint32_t i = range.begin; i < range.end; ++i) {
-      const float d2 = (sorted_[i] - query).squaredNorm();
+      const float d2 = squaredDistance(i, query);
       if (d2 > best) continue;
       // Ties go to the lower original index so that the answer does not depend on cell order.
       if (d2 < best || best_index < 0 || original_index_[i] < best_index) {
@@ -210,32 +237,36 @@ void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, con
   {
     std::vector<const Range*> around;
     std::vector<int> neighbours;
+    std::vector<float> distances;
 #pragma omp for schedule(dynamic, 64)
     for (std::ptrdiff_t cell = 0; cell < static_cast<std::ptrdiff_t>(cells_.size()); ++cell) {
       const Range& home = cells_[static_cast<size_t>(cell)];
-      const int64_t cx = static_cast<int64_t>(home.key >> 42), cy = static_cast<int64_t>((home.key >> 21) & kMaxCell),
-                    cz = static_cast<int64_t>(home.key & kMaxCell);
       // The cells around this one are looked up once for all of its points.
       around.clear();
-      for (int64_t x = std::max<int64_t>(0, cx - s); x <= std::min<int64_t>(kMaxCell, cx + s); ++x) {
-        for (int64_t y = std::max<int64_t>(0, cy - s); y <= std::min<int64_t>(kMaxCell, cy + s); ++y) {
-          for (int64_t z = std::max<int64_t>(0, cz - s); z <= std::min<int64_t>(kMaxCell, cz + s); ++z) {
-            if (const Range* range = find(keyOf(x, y, z))) around.push_back(range);
-          }
-        }
-      }
+      forEachCellNear(static_cast<int64_t>(home.key >> 42), static_cast<int64_t>((home.key >> 21) & kMaxCell),
+                      static_cast<int64_t>(home.key & kMaxCell), s, [&](const Range& range) { around.push_back(&range); });
       size_t candidates = 0;
       for (const Range* range : around) candidates += range->end - range->begin;
+      distances.resize(candidates);
       for (uint32_t i = home.begin; i < home.end; ++i) {
-        const Eigen::Vector3f p = sorted_[i];
-        // Branch-free compaction: about half of the candidates are inside, so a branch on the
+        const float px = x_[i], py = y_[i], pz = z_[i];
+        // Distances first, in a loop over contiguous coordinates that vectorises; then a
+        // branch-free compaction: about half of the candidates are inside, so a branch on the
         // distance would be mispredicted half of the time.
+        size_t n = 0;
+        for (const Range* range : around) {
+          for (uint32_t j = range->begin; j < range->end; ++j, ++n) {
+            const float dx = x_[j] - px, dy = y_[j] - py, dz = z_[j] - pz;
+            distances[n] = dx * dx + dy * dy + dz * dz;
+          }
+        }
         neighbours.resize(candidates);
         size_t found = 0;
+        n = 0;
         for (const Range* range : around) {
-          for (uint32_t j = range->begin; j < range->end; ++j) {
+          for (uint32_t j = range->begin; j < range->end; ++j, ++n) {
             neighbours[found] = original_index_[j];
-            found += (sorted_[j] - p).squaredNorm() <= r2;
+            found += distances[n] <= r2;
           }
         }
         neighbours.resize(found);

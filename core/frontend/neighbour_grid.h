@@ -54,25 +54,36 @@ class NeighbourGrid {
  private:
   struct Range {
     uint64_t key;
-    uint32_t begin, end;  // into sorted_
+    uint32_t begin, end;  // cells_: into the sorted points; columns_: into cells_
   };
   void build(std::vector<Eigen::Vector3f> points, float cell_size);
   uint64_t keyOf(int64_t x, int64_t y, int64_t z) const;
   uint64_t slotOf(uint64_t key) const;
   Eigen::Array3i cellOf(const Eigen::Vector3f& p) const;
-  const Range* find(uint64_t key) const;
+  const Range* findColumn(uint64_t column_key) const;
+  // visit(range) for each occupied cell within `s` cells of cell (cx, cy, cz) on every axis.
+  template <class Visit>
+  void forEachCellNear(int64_t cx, int64_t cy, int64_t cz, int s, Visit&& visit) const;
   // visit(range) for each occupied cell that may hold points within `radius` of `query`.
   template <class Visit>
   void forEachCellAround(const Eigen::Vector3f& query, float radius, Visit&& visit) const;
   int span(float radius) const;  // cells to look at on each side of the query's cell
+  float squaredDistance(uint32_t i, const Eigen::Vector3f& q) const {
+    const float dx = x_[i] - q.x(), dy = y_[i] - q.y(), dz = z_[i] - q.z();
+    return dx * dx + dy * dy + dz * dz;
+  }
 
   float cell_size_ = 1.0f;
   float inverse_cell_ = 1.0f;
   Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // double: it lies ~10^6 cells away from the points
-  std::vector<Eigen::Vector3f> sorted_;  // points ordered by cell
-  std::vector<int> original_index_;      // sorted_[i] was point original_index_[i]
-  std::vector<Range> cells_;             // one per occupied cell, ascending key
-  std::vector<Range> table_;             // open addressing over cells_' keys (linear probing)
+  // The points ordered by cell, one array per coordinate so that distances to a run of them
+  // vectorise.
+  std::vector<float> x_, y_, z_;
+  std::vector<int> original_index_;  // sorted point i was point original_index_[i]
+  std::vector<Range> cells_;         // one per occupied cell, ascending key
+  // A column is the cells sharing x and y; they are contiguous in cells_ and ascend in z. The
+  // table is keyed by column, so the 27 cells around a cell cost 9 lookups instead of 27.
+  std::vector<Range> columns_;  // open addressing (linear probing), key = keyOf(x, y, 0)
   uint64_t table_mask_ = 0;
   int table_shift_ = 60;  // 64 - log2(table size)
 };
