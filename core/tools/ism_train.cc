@@ -21,6 +21,9 @@ int main(int argc, char** argv) {
   app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
+  bool no_scene_smoothing = false;
+  app.add_flag("--no-scene-smoothing", no_scene_smoothing,
+               "recognise scenes without MLS smoothing, as training scans are: faster, see the README's figures");
   try {
     app.parse(argc, argv);
     if (folders.empty() == manifest.empty()) throw CLI::ValidationError("give exactly one of --folders or --manifest");
@@ -30,6 +33,7 @@ int main(int argc, char** argv) {
     app.exit(e);
     return 2;
   }
+  if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
   for (const auto& bin : bins) {
     const auto eq = bin.find('=');
     try {

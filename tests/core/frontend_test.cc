@@ -417,6 +417,14 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   std::vector<std::string> names;
   for (const auto& stage : timings.stages) names.push_back(stage.first);
   EXPECT_EQ(names, (std::vector<std::string>{"downsample", "smooth", "normals", "keypoints", "describe"}));
+  // A model trained with `ism-train --no-scene-smoothing` stores this: scenes then skip MLS.
+  FrontEndParams unsmoothed;
+  unsmoothed.smoothing.enabled = false;
+  StageTimings unsmoothed_timings;
+  extractFeatures(scene, unsmoothed, /*apply_smoothing=*/true, &unsmoothed_timings);
+  names.clear();
+  for (const auto& stage : unsmoothed_timings.stages) names.push_back(stage.first);
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "normals", "keypoints", "describe"}));
   EXPECT_EQ(result.input_points, scene.cloud->size());
   EXPECT_GE(result.keypoint_candidates, result.features.size());
   ASSERT_GT(result.features.size(), 50u);
