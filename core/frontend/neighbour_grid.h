@@ -88,8 +88,8 @@ class NeighbourGrid {
   int table_shift_ = 60;  // 64 - log2(table size)
 };
 
-// NeighbourGrid behind PCL's search interface, so that PCL's estimators (SHOT and its LRF) can
-// use it in place of a k-d tree. k-nearest searches are answered by growing the radius until k
+// NeighbourGrid behind PCL's search interface, so that PCL's estimators can use it in place of
+// a k-d tree: shot_test runs PCL's SHOT and LRF over it to check computeShot(). k-nearest searches are answered by growing the radius until k
 // points are found, and come sorted. Radius searches come unsorted, whatever setSortedResults()
 // asked: pcl::SHOTLocalReferenceFrameEstimation asks for sorting on the search it shares with
 // SHOT, yet neither reads the order (PCL 1.13 shot_lrf.hpp, shot.hpp), and sorting every 8 cm
