@@ -40,6 +40,12 @@ struct Activation {
   float distance;  // Euclidean, descriptor to codeword
 };
 
+// Which distance kernel codeword activation runs (x86-64: all three; elsewhere the baseline one).
+// kAuto takes the widest one the CPU runs; the others are there so that tests can check each.
+// All give the same floats (no fused multiply-adds), those of the Eigen GEMM activation used
+// before but for a GEMM's last few rows.
+enum class DistanceKernel { kAuto, kBaseline, kAvx2, kAvx512 };
+
 class Codebook {
  public:
   Codebook() = default;
@@ -49,13 +55,29 @@ class Codebook {
   int dim() const { return static_cast<int>(centers_.cols()); }
   const DescriptorMatrix& centers() const { return centers_; }
 
-  // Activations grouped by keypoint in keypoint order, nearest codeword first. Search is exact
-  // and brute force (one GEMM): with a few hundred 352-d codewords no tree beats it.
-  std::vector<Activation> activate(const DescriptorMatrix& descriptors, const ActivationParams& params) const;
+  // Activations grouped by keypoint in keypoint order, nearest codeword first. Among equal
+  // distances k = 1 takes the lowest codeword; more codewords come in the order std::partial_sort
+  // (k-NN) or std::sort (cutoff) leaves them, as they always did. Search is exact and brute
+  // force: with a few hundred 352-d codewords no tree beats it.
+  std::vector<Activation> activate(const DescriptorMatrix& descriptors, const ActivationParams& params,
+                                   DistanceKernel kernel = DistanceKernel::kAuto) const;
+
+  // Squared Euclidean distances of every descriptor to every codeword (descriptors x size()),
+  // as activate computes them: |a|^2 + |b|^2 - 2 a.b clamped at zero.
+  Eigen::MatrixXf squaredDistances(const DescriptorMatrix& descriptors,
+                                   DistanceKernel kernel = DistanceKernel::kAuto) const;
+
+  // The kernel that runs when `kernel` is asked for: kAuto or one the CPU lacks falls back to
+  // the widest narrower one it has.
+  static DistanceKernel kernelFor(DistanceKernel kernel);
 
  private:
   DescriptorMatrix centers_;
   Eigen::VectorXf squared_norms_;  // of centers_' rows
+  // centers_ in panels of kPanel codewords, each panel dimension-major (dim() x kPanel floats),
+  // zero-padded to whole panels; the kernels read it, and squared_norms_ likewise padded.
+  std::vector<float> panels_;
+  std::vector<float> panel_norms_;
 };
 
 }  // namespace ism
