@@ -19,14 +19,6 @@ static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "wire formats are littl
 
 Error invalid(const std::string& message) { return Error(ErrorCode::kInvalidInput, message); }
 
-// Protobuf gives no alignment guarantee for bytes fields, so copy before reading as T.
-template <typename T>
-std::vector<T> copyPacked(const std::string& bytes) {
-  std::vector<T> values(bytes.size() / sizeof(T));
-  std::memcpy(values.data(), bytes.data(), values.size() * sizeof(T));
-  return values;
-}
-
 void checkSize(size_t count, size_t limit, const char* what) {
   if (count > limit) {
     throw Error(ErrorCode::kResourceExhausted, std::string(what) + " has " + std::to_string(count) +
@@ -34,7 +26,7 @@ void checkSize(size_t count, size_t limit, const char* what) {
   }
 }
 
-Scene cloudScene(const v1::PointCloud& cloud, const InputLimits& limits) {
+Scene cloudScene(const v1::PointCloud& cloud, const InputLimits& limits, SceneBuffers* buffers) {
   if (cloud.xyz().empty()) throw invalid("scene.cloud.xyz is empty: the cloud has no points");
   if (cloud.xyz().size() % 12 != 0) {
     throw invalid("scene.cloud.xyz has " + std::to_string(cloud.xyz().size()) +
@@ -54,10 +46,46 @@ Scene cloudScene(const v1::PointCloud& cloud, const InputLimits& limits) {
     throw invalid("scene.cloud is declared " + std::to_string(width) + "x" + std::to_string(height) + " = " +
                   std::to_string(width * height) + " points but xyz has " + std::to_string(count));
   }
-  const auto xyz = copyPacked<float>(cloud.xyz());
-  return sceneFromPacked(xyz.data(), count,
-                         cloud.rgb().empty() ? nullptr : reinterpret_cast<const uint8_t*>(cloud.rgb().data()),
-                         static_cast<int>(width), static_cast<int>(height));
+
+  // What core's sceneFromPacked does, without first copying the bytes into an aligned array:
+  // finite points only, and for an organized cloud (height > 1) the image size and each kept
+  // point's pixel index.
+  Scene out;
+  if (buffers != nullptr && buffers->cloud) out.cloud = std::move(buffers->cloud);
+  if (buffers != nullptr) out.pixel_index = std::move(buffers->pixel_index);
+  out.cloud->clear();
+  out.pixel_index.clear();
+  const bool organized = height > 1;
+  const bool has_color = !cloud.rgb().empty();
+  out.has_color = has_color;
+  if (organized) {
+    out.image_width = static_cast<int>(width);
+    out.image_height = static_cast<int>(height);
+    out.pixel_index.reserve(count);
+  }
+  auto& points = out.cloud->points;
+  points.reserve(count);
+  const char* xyz = cloud.xyz().data();  // no alignment guarantee: read through memcpy
+  const auto* rgb = reinterpret_cast<const uint8_t*>(cloud.rgb().data());
+  for (size_t i = 0; i < count; ++i) {
+    float p[3];
+    std::memcpy(p, xyz + 12 * i, sizeof p);
+    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
+    if (has_color) {
+      points.emplace_back(p[0], p[1], p[2], rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]);
+    } else {
+      points.emplace_back(p[0], p[1], p[2]);
+    }
+    if (organized) out.pixel_index.push_back(static_cast<int>(i));
+  }
+  if (points.empty()) {
+    throw invalid("request: none of its " + std::to_string(count) +
+                  " points is finite (no valid measurement)");
+  }
+  out.cloud->width = static_cast<uint32_t>(points.size());
+  out.cloud->height = 1;
+  out.cloud->is_dense = true;
+  return out;
 }
 
 DepthIntrinsics intrinsicsFromProto(const v1::CameraIntrinsics& in) {
@@ -108,7 +136,9 @@ Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
                       std::to_string(width) + "x" + std::to_string(height) + " uint16 image needs " +
                       std::to_string(2 * width * height));
       }
-      const auto pixels = copyPacked<uint16_t>(depth.data());
+      // Protobuf gives no alignment guarantee for bytes fields, so copy before reading as uint16.
+      std::vector<uint16_t> pixels(width * height);
+      std::memcpy(pixels.data(), depth.data().data(), depth.data().size());
       return depthToScene(pixels.data(), static_cast<int>(width), static_cast<int>(height), intrinsics, "request");
     }
     case v1::DEPTH_ENCODING_PNG: {
@@ -162,7 +192,18 @@ void encodeMessage(const google::protobuf::MessageLite& message, grpc::ByteBuffe
   }
 }
 
-Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits) {
+void SceneBuffers::recycle(Scene& scene) {
+  if (scene.cloud && scene.cloud.use_count() == 1 && scene.cloud->points.capacity() <= kMaxKeptPoints) {
+    cloud = std::move(scene.cloud);
+    cloud->clear();
+  }
+  if (scene.pixel_index.capacity() <= kMaxKeptPoints) {
+    pixel_index = std::move(scene.pixel_index);
+    pixel_index.clear();
+  }
+}
+
+Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers) {
   const Eigen::Vector3f origin = vec(scene.sensor_origin());
   const auto& q = scene.sensor_orientation();
   Eigen::Quaternionf orientation(q.w(), q.x(), q.y(), q.z());
@@ -178,7 +219,7 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits) {
   Scene out;
   switch (scene.data_case()) {
     case v1::Scene::kCloud:
-      out = cloudScene(scene.cloud(), limits);
+      out = cloudScene(scene.cloud(), limits, buffers);
       break;
     case v1::Scene::kDepth: {
       out = depthScene(scene.depth(), limits);

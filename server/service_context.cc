@@ -14,12 +14,18 @@ void ServiceContext::recognize(const std::string& request_id, const v1::Scene& s
                                v1::RecognitionResult* out) const {
   const auto model = models.get(options.model());  // held until the end: unloads cannot touch it
   StageTimings decode_timing;
+  // This thread's buffers from its previous scene, given back however this call ends.
+  thread_local SceneBuffers buffers;
   Scene decoded;
+  struct Recycle {
+    Scene& scene;
+    ~Recycle() { buffers.recycle(scene); }
+  } recycle{decoded};
   RecognitionOptions core_options;
   {
     ScopedStage stage(&decode_timing, "decode");
     core_options = optionsFromProto(options, model->model);
-    decoded = sceneFromProto(scene, limits);
+    decoded = sceneFromProto(scene, limits, &buffers);
   }
   core_options.should_stop = should_stop;
   RecognitionResult result = ism::recognize(model->model, decoded, core_options);

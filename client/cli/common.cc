@@ -5,6 +5,7 @@
 #include <CLI/CLI.hpp>
 #include <cctype>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 
@@ -131,22 +132,33 @@ v1::Scene cloudMessage(const Scene& scene) {
     cloud->set_width(static_cast<uint32_t>(scene.image_width));
     cloud->set_height(static_cast<uint32_t>(scene.image_height));
   }
-  std::vector<float> xyz(slots * 3, std::numeric_limits<float>::quiet_NaN());
-  std::string* rgb = cloud->mutable_rgb();
-  if (scene.has_color) rgb->assign(slots * 3, '\0');
+  // Written straight into the message's bytes (little-endian float32, as the wire wants), not
+  // built in a vector and copied: a 640x480 frame is 3.7 MB of xyz.
+  std::string* xyz = cloud->mutable_xyz();
+  xyz->resize(slots * 3 * sizeof(float));
+  char* xyz_out = xyz->data();
+  if (organized) {
+    const float nan[3] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::quiet_NaN(),
+                          std::numeric_limits<float>::quiet_NaN()};
+    for (size_t slot = 0; slot < slots; ++slot) std::memcpy(xyz_out + slot * sizeof nan, nan, sizeof nan);
+  }
+  char* rgb_out = nullptr;
+  if (scene.has_color) {
+    std::string* rgb = cloud->mutable_rgb();
+    rgb->assign(slots * 3, '\0');
+    rgb_out = rgb->data();
+  }
   for (size_t i = 0; i < scene.cloud->size(); ++i) {
     const auto& p = (*scene.cloud)[i];
     const size_t slot = organized ? static_cast<size_t>(scene.pixel_index[i]) : i;
-    xyz[slot * 3] = p.x;
-    xyz[slot * 3 + 1] = p.y;
-    xyz[slot * 3 + 2] = p.z;
-    if (scene.has_color) {
-      (*rgb)[slot * 3] = static_cast<char>(p.r);
-      (*rgb)[slot * 3 + 1] = static_cast<char>(p.g);
-      (*rgb)[slot * 3 + 2] = static_cast<char>(p.b);
+    const float point[3] = {p.x, p.y, p.z};
+    std::memcpy(xyz_out + slot * sizeof point, point, sizeof point);
+    if (rgb_out != nullptr) {
+      rgb_out[slot * 3] = static_cast<char>(p.r);
+      rgb_out[slot * 3 + 1] = static_cast<char>(p.g);
+      rgb_out[slot * 3 + 2] = static_cast<char>(p.b);
     }
   }
-  cloud->set_xyz(reinterpret_cast<const char*>(xyz.data()), xyz.size() * sizeof(float));
   auto* origin = message.mutable_sensor_origin();
   origin->set_x(scene.sensor_origin.x());
   origin->set_y(scene.sensor_origin.y());
