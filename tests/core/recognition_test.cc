@@ -61,6 +61,19 @@ HandMadeObject handMadeObject(const Eigen::Vector3f& center, int keypoints, int 
   return o;
 }
 
+// Two hand-made objects in one scene: 30 keypoints voting for `a`, then 20 voting for `b`,
+// each keypoint with its own codeword.
+HandMadeObject twoObjects(const Eigen::Vector3f& a, const Eigen::Vector3f& b) {
+  HandMadeObject both = handMadeObject(a, 30, 0, 0.02f);
+  const HandMadeObject second = handMadeObject(b, 20, 30, 0.02f);
+  Features& f = both.features;
+  f.positions.insert(f.positions.end(), second.features.positions.begin(), second.features.positions.end());
+  f.lrfs.insert(f.lrfs.end(), second.features.lrfs.begin(), second.features.lrfs.end());
+  both.votes.insert(both.votes.end(), second.votes.begin(), second.votes.end());
+  both.activations.insert(both.activations.end(), second.activations.begin(), second.activations.end());
+  return both;
+}
+
 TEST(CastVotes, VotesRotatedBackLandOnTheCentre) {
   const Eigen::Vector3f center(1.0f, -2.0f, 0.5f);
   const HandMadeObject o = handMadeObject(center, 50);
@@ -109,15 +122,10 @@ TEST(CastVotes, RejectsActivationsOutsideTheTable) {
 
 TEST(FindPeaks, TwoSeparatedClustersGiveTwoHypotheses) {
   const Eigen::Vector3f a(0, 0, 0.5f), b(1.5f, 0.3f, 0.5f);
-  HandMadeObject first = handMadeObject(a, 30, 0, 0.02f), second = handMadeObject(b, 20, 30, 0.02f);
-  Features f = first.features;
-  f.positions.insert(f.positions.end(), second.features.positions.begin(), second.features.positions.end());
-  f.lrfs.insert(f.lrfs.end(), second.features.lrfs.begin(), second.features.lrfs.end());
-  auto table = first.votes;
-  table.insert(table.end(), second.votes.begin(), second.votes.end());
-  auto activations = first.activations;
-  activations.insert(activations.end(), second.activations.begin(), second.activations.end());
-  const Model m = modelWithVotes(table);
+  const HandMadeObject scene = twoObjects(a, b);
+  const Features& f = scene.features;
+  const auto& activations = scene.activations;
+  const Model m = modelWithVotes(scene.votes);
   const Strategy cw = strategy(VoteWeighting::kCategorization);
   const HoughSpace hough(m, 0, f, activations, cw);
   EXPECT_EQ(hough.votes(), 50u);
@@ -325,15 +333,10 @@ TEST(FindPeaks, GridAndHashedBinsGiveTheSameHypotheses) {
 // there are votes, so the bins are hashed and only the occupied ones kept.
 TEST(FindPeaks, FarApartKeypointsFallBackToHashedBins) {
   const Eigen::Vector3f a(0, 0, 0.5f), b(1000.0f, 1000.0f, 0.5f);
-  HandMadeObject first = handMadeObject(a, 30, 0, 0.02f), second = handMadeObject(b, 20, 30, 0.02f);
-  Features f = first.features;
-  f.positions.insert(f.positions.end(), second.features.positions.begin(), second.features.positions.end());
-  f.lrfs.insert(f.lrfs.end(), second.features.lrfs.begin(), second.features.lrfs.end());
-  auto table = first.votes;
-  table.insert(table.end(), second.votes.begin(), second.votes.end());
-  auto activations = first.activations;
-  activations.insert(activations.end(), second.activations.begin(), second.activations.end());
-  const Model m = modelWithVotes(table);
+  const HandMadeObject scene = twoObjects(a, b);
+  const Features& f = scene.features;
+  const auto& activations = scene.activations;
+  const Model m = modelWithVotes(scene.votes);
   const HoughSpace hough(m, 0, f, activations, strategy(VoteWeighting::kCategorization));
   EXPECT_FALSE(hough.gridded());
   const auto peaks = hough.findPeaks(5.0f);
