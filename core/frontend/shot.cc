@@ -161,15 +161,17 @@ inline double fastAtan2(double y, double x) {
   return y < 0 ? -half : half;
 }
 
-// The compiler builds histogram() twice, for AVX2 and for the x86-64 baseline, and the loader
-// picks one (an ifunc, hence glibc). With AVX2 its per-point loop works on 4 doubles at a time
-// instead of 2, without SSE2's register copies and three-instruction selects, which took the
-// describe stage on tum_desk (3,376 keypoints) from 28 to 21 ms of CPU time. The IEEE
-// operations per point are the same, and so are the results.
-#if defined(__x86_64__) && defined(__GLIBC__)
-#define ISM_AVX2_CLONE __attribute__((target_clones("avx2", "default")))
+// histogram() is compiled twice, for the x86-64 baseline and for AVX2, and the CPU's features
+// pick one at run time (as the codebook's distance kernels are). With AVX2 its per-point loop
+// works on 4 doubles at a time instead of 2, without SSE2's register copies and three-instruction
+// selects, which took the describe stage on tum_desk (3,376 keypoints) from 28 to 21 ms of CPU
+// time. The IEEE operations per point are the same, and so are the results. (A target_clones
+// ifunc did the same, but its resolver runs before ThreadSanitizer's runtime is up and crashed
+// every instrumented binary at start.)
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#define ISM_SHOT_AVX2 1
 #else
-#define ISM_AVX2_CLONE
+#define ISM_SHOT_AVX2 0
 #endif
 
 // PCL's createBinDistanceShape and interpolateSingleChannel (shot.hpp): each support point votes
@@ -183,7 +185,8 @@ inline double fastAtan2(double y, double x) {
 // 1 + d / 1 - d and -= d / += d; a share that PCL does not cast goes to bins[kShotLength], which
 // is never read. The votes are then added in the support's order. One point's votes land in
 // distinct bins, so each bin receives PCL's floats in PCL's order.
-ISM_AVX2_CLONE void histogram(Support& s, double radius, const Eigen::Matrix3f& lrf, float* bins) {
+inline __attribute__((always_inline)) void histogramBody(Support& s, double radius, const Eigen::Matrix3f& lrf,
+                                                         float* bins) {
   const size_t n = s.indices.size();
   for (auto* column : {&s.x, &s.y, &s.z, &s.normal_cosine}) column->resize(n);
   for (auto& column : s.vote_bins) column.resize(n);
@@ -300,6 +303,28 @@ ISM_AVX2_CLONE void histogram(Support& s, double radius, const Eigen::Matrix3f& 
     bins[static_cast<int>(azimuth_bin[j])] += azimuth_share[j];
     bins[static_cast<int>(own_bin[j])] += own_share[j];
   }
+}
+
+void histogramBaseline(Support& s, double radius, const Eigen::Matrix3f& lrf, float* bins) {
+  histogramBody(s, radius, lrf, bins);
+}
+
+#if ISM_SHOT_AVX2
+__attribute__((target("avx2"))) void histogramAvx2(Support& s, double radius, const Eigen::Matrix3f& lrf,
+                                                   float* bins) {
+  histogramBody(s, radius, lrf, bins);
+}
+#endif
+
+void histogram(Support& s, double radius, const Eigen::Matrix3f& lrf, float* bins) {
+#if ISM_SHOT_AVX2
+  static const bool avx2 = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") != 0;
+  }();
+  if (avx2) return histogramAvx2(s, radius, lrf, bins);
+#endif
+  histogramBaseline(s, radius, lrf, bins);
 }
 
 // PCL's normalizeHistogram: unit L2 norm, accumulated in double. False when nothing voted.
