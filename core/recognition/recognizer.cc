@@ -630,6 +630,18 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       if (inside & (keypoints.empty() || keypoints.back() != k)) keypoints.push_back(k);
     }
   };
+  // Every vote once, keypoint ranges split between threads: onChunk(s, votes, keypoint) adds a
+  // chunk's votes that land in a cube's bins; the storage paths differ only in finding the bin.
+  const auto recast = [&](const auto& onChunk) {
+    return perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
+      s.score.assign(candidates.size(), 0.0);
+      s.keypoints.resize(candidates.size());
+      VoteChunk chunk;
+      for (size_t k = begin; k < end; ++k) {
+        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) { onChunk(s, votes, k); });
+      }
+    });
+  };
   std::vector<Support> parts;
   if (impl.grid) {
     // The ranges of the bins of a block meeting a cube, 1 + index into `ranges` (0: none), in
@@ -647,25 +659,18 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       const auto place = static_cast<uint32_t>(BinGrid::placeOf(bin.x(), bin.y(), bin.z()));
       near_ranges[slot * BinGrid::kBlockBins + place] = r + 1;
     }
-    parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
-      s.score.assign(candidates.size(), 0.0);
-      s.keypoints.resize(candidates.size());
-      VoteChunk chunk;
-      for (size_t k = begin; k < end; ++k) {
-        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
-          const ChunkCells in(votes, inverse_bin_size, grid);
-          // Most votes miss every cube: the ranges of the others are gathered without branching.
-          uint32_t hit[kChunk], range[kChunk], hits = 0;
-          for (uint32_t j = 0; j < votes.size; ++j) {
-            const uint32_t r = near_ranges[near_block[static_cast<size_t>(in.block[j])] * BinGrid::kBlockBins +
-                                           static_cast<uint32_t>(in.place[j])];
-            hit[hits] = j;
-            range[hits] = r;
-            hits += r != 0;
-          }
-          for (uint32_t h = 0; h < hits; ++h) support(s, votes, hit[h], ranges[range[h] - 1], static_cast<int>(k));
-        });
+    parts = recast([&](Support& s, const VoteChunk& votes, size_t k) {
+      const ChunkCells in(votes, inverse_bin_size, grid);
+      // Most votes miss every cube: the ranges of the others are gathered without branching.
+      uint32_t hit[kChunk], range[kChunk], hits = 0;
+      for (uint32_t j = 0; j < votes.size; ++j) {
+        const uint32_t r = near_ranges[near_block[static_cast<size_t>(in.block[j])] * BinGrid::kBlockBins +
+                                       static_cast<uint32_t>(in.place[j])];
+        hit[hits] = j;
+        range[hits] = r;
+        hits += r != 0;
       }
+      for (uint32_t h = 0; h < hits; ++h) support(s, votes, hit[h], ranges[range[h] - 1], static_cast<int>(k));
     });
   } else {
     BinMap<uint32_t> range_of;  // 1 + the range of a bin
@@ -681,21 +686,14 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       const uint64_t bit = filterBit(key);
       near_filter[bit >> 6] |= uint64_t{1} << (bit & 63);
     }
-    parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
-      s.score.assign(candidates.size(), 0.0);
-      s.keypoints.resize(candidates.size());
-      VoteChunk chunk;
-      for (size_t k = begin; k < end; ++k) {
-        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
-          const ChunkBins in(votes, inverse_bin_size);
-          for (uint32_t j = 0; j < votes.size; ++j) {
-            const BinKey key = in.key(j);
-            const uint64_t bit = filterBit(key);
-            if (!(near_filter[bit >> 6] >> (bit & 63) & 1)) continue;
-            const uint32_t* r = range_of.find(key);
-            if (r != nullptr) support(s, votes, j, ranges[*r - 1], static_cast<int>(k));
-          }
-        });
+    parts = recast([&](Support& s, const VoteChunk& votes, size_t k) {
+      const ChunkBins in(votes, inverse_bin_size);
+      for (uint32_t j = 0; j < votes.size; ++j) {
+        const BinKey key = in.key(j);
+        const uint64_t bit = filterBit(key);
+        if (!(near_filter[bit >> 6] >> (bit & 63) & 1)) continue;
+        const uint32_t* r = range_of.find(key);
+        if (r != nullptr) support(s, votes, j, ranges[*r - 1], static_cast<int>(k));
       }
     });
   }
