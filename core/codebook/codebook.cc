@@ -8,6 +8,7 @@
 #include <random>
 #include <string>
 
+#include "core/common/cpu_features.h"
 #include "core/common/error.h"
 
 namespace ism {
@@ -114,11 +115,6 @@ constexpr int kGroupRows = 24;
 #define ISM_NO_FMA
 #endif
 
-#if defined(__x86_64__) && defined(__GNUC__)
-#define ISM_X86_KERNELS 1
-#else
-#define ISM_X86_KERNELS 0
-#endif
 
 // One call of a kernel: up to kGroupRows descriptors against the whole codebook.
 struct DistanceArgs {
@@ -243,18 +239,7 @@ __attribute__((target("avx512f"))) ISM_NO_FMA void distanceRowsAvx512(const Dist
 #endif
 
 bool cpuSupports(DistanceKernel kernel) {
-#if ISM_X86_KERNELS
-  static const bool avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  static const bool avx512 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") != 0;
-  }();
-#else
-  constexpr bool avx2 = false, avx512 = false;
-#endif
+  const bool avx2 = cpuHasAvx2(), avx512 = cpuHasAvx512f();
   switch (kernel) {
     case DistanceKernel::kAvx2:
       return avx2;

@@ -6,6 +6,7 @@
 #include <cmath>
 #include <string>
 
+#include "core/common/cpu_features.h"
 #include "core/common/error.h"
 #include "core/frontend/neighbour_grid.h"
 
@@ -162,17 +163,10 @@ inline double fastAtan2(double y, double x) {
 }
 
 // histogram() is compiled twice, for the x86-64 baseline and for AVX2, and the CPU's features
-// pick one at run time (as the codebook's distance kernels are). With AVX2 its per-point loop
-// works on 4 doubles at a time instead of 2, without SSE2's register copies and three-instruction
-// selects, which took the describe stage on tum_desk (3,376 keypoints) from 28 to 21 ms of CPU
-// time. The IEEE operations per point are the same, and so are the results. (A target_clones
-// ifunc did the same, but its resolver runs before ThreadSanitizer's runtime is up and crashed
-// every instrumented binary at start.)
-#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
-#define ISM_SHOT_AVX2 1
-#else
-#define ISM_SHOT_AVX2 0
-#endif
+// pick one at run time (core/common/cpu_features.h). With AVX2 its per-point loop works on 4
+// doubles at a time instead of 2, without SSE2's register copies and three-instruction selects,
+// which took the describe stage on tum_desk (3,376 keypoints) from 28 to 21 ms of CPU time. The
+// IEEE operations per point are the same, and so are the results.
 
 // PCL's createBinDistanceShape and interpolateSingleChannel (shot.hpp): each support point votes
 // for the cosine bin of its normal in its volume, shared linearly with the neighbouring cosine
@@ -309,7 +303,7 @@ void histogramBaseline(Support& s, double radius, const Eigen::Matrix3f& lrf, fl
   histogramBody(s, radius, lrf, bins);
 }
 
-#if ISM_SHOT_AVX2
+#if ISM_X86_KERNELS
 __attribute__((target("avx2"))) void histogramAvx2(Support& s, double radius, const Eigen::Matrix3f& lrf,
                                                    float* bins) {
   histogramBody(s, radius, lrf, bins);
@@ -317,12 +311,8 @@ __attribute__((target("avx2"))) void histogramAvx2(Support& s, double radius, co
 #endif
 
 void histogram(Support& s, double radius, const Eigen::Matrix3f& lrf, float* bins) {
-#if ISM_SHOT_AVX2
-  static const bool avx2 = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  if (avx2) return histogramAvx2(s, radius, lrf, bins);
+#if ISM_X86_KERNELS
+  if (cpuHasAvx2()) return histogramAvx2(s, radius, lrf, bins);
 #endif
   histogramBaseline(s, radius, lrf, bins);
 }
