@@ -46,46 +46,16 @@ Scene cloudScene(const v1::PointCloud& cloud, const InputLimits& limits, SceneBu
     throw invalid("scene.cloud is declared " + std::to_string(width) + "x" + std::to_string(height) + " = " +
                   std::to_string(width * height) + " points but xyz has " + std::to_string(count));
   }
-
-  // What core's sceneFromPacked does, without first copying the bytes into an aligned array:
-  // finite points only, and for an organized cloud (height > 1) the image size and each kept
-  // point's pixel index.
-  Scene out;
-  if (buffers != nullptr && buffers->cloud) out.cloud = std::move(buffers->cloud);
-  if (buffers != nullptr) out.pixel_index = std::move(buffers->pixel_index);
-  out.cloud->clear();
-  out.pixel_index.clear();
-  const bool organized = height > 1;
-  const bool has_color = !cloud.rgb().empty();
-  out.has_color = has_color;
-  if (organized) {
-    out.image_width = static_cast<int>(width);
-    out.image_height = static_cast<int>(height);
-    out.pixel_index.reserve(count);
+  // Straight from the request's bytes (sceneFromPacked reads them unaligned), into the worker's
+  // kept cloud when it has one.
+  Scene reuse;
+  if (buffers != nullptr) {
+    reuse.cloud = std::move(buffers->cloud);
+    reuse.pixel_index = std::move(buffers->pixel_index);
   }
-  auto& points = out.cloud->points;
-  points.reserve(count);
-  const char* xyz = cloud.xyz().data();  // no alignment guarantee: read through memcpy
-  const auto* rgb = reinterpret_cast<const uint8_t*>(cloud.rgb().data());
-  for (size_t i = 0; i < count; ++i) {
-    float p[3];
-    std::memcpy(p, xyz + 12 * i, sizeof p);
-    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) continue;
-    if (has_color) {
-      points.emplace_back(p[0], p[1], p[2], rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]);
-    } else {
-      points.emplace_back(p[0], p[1], p[2]);
-    }
-    if (organized) out.pixel_index.push_back(static_cast<int>(i));
-  }
-  if (points.empty()) {
-    throw invalid("request: none of its " + std::to_string(count) +
-                  " points is finite (no valid measurement)");
-  }
-  out.cloud->width = static_cast<uint32_t>(points.size());
-  out.cloud->height = 1;
-  out.cloud->is_dense = true;
-  return out;
+  return sceneFromPacked(cloud.xyz().data(), count,
+                         cloud.rgb().empty() ? nullptr : reinterpret_cast<const uint8_t*>(cloud.rgb().data()),
+                         static_cast<int>(width), static_cast<int>(height), "request", &reuse);
 }
 
 DepthIntrinsics intrinsicsFromProto(const v1::CameraIntrinsics& in) {

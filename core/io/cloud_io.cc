@@ -26,8 +26,15 @@ bool isFinite(const PointT& p) { return std::isfinite(p.x) && std::isfinite(p.y)
 // Builds a scene from `count` candidate points, keeping the finite ones. `fill(i, point)` writes
 // candidate i. Organized input (height > 1) keeps its size and each kept point's pixel index.
 template <class Fill>
-Scene collectFinite(size_t count, int width, int height, bool has_color, const std::string& source, Fill fill) {
+Scene collectFinite(size_t count, int width, int height, bool has_color, const std::string& source, Fill fill,
+                    Scene* reuse = nullptr) {
   Scene scene;
+  if (reuse != nullptr) {
+    if (reuse->cloud) scene.cloud = std::move(reuse->cloud);
+    scene.pixel_index = std::move(reuse->pixel_index);
+    scene.cloud->clear();
+    scene.pixel_index.clear();
+  }
   scene.source = source;
   scene.has_color = has_color;
   const bool organized = height > 1;
@@ -330,8 +337,8 @@ Scene loadDepthPng(const std::string& path, const DepthIntrinsics& intrinsics) {
   return decodeDepthPng(readFileBytes(path), intrinsics, path);
 }
 
-Scene sceneFromPacked(const float* xyz, size_t count, const uint8_t* rgb, int width, int height,
-                      const std::string& source) {
+Scene sceneFromPacked(const void* xyz, size_t count, const uint8_t* rgb, int width, int height,
+                      const std::string& source, Scene* reuse) {
   if (count == 0 || xyz == nullptr) throw Error(ErrorCode::kInvalidInput, source + ": no points");
   if (width <= 0 || height <= 0) {
     throw Error(ErrorCode::kInvalidInput, source + ": width " + std::to_string(width) + " and height " +
@@ -343,16 +350,22 @@ Scene sceneFromPacked(const float* xyz, size_t count, const uint8_t* rgb, int wi
                                               std::to_string(static_cast<size_t>(width) * height) +
                                               " does not match the " + std::to_string(count) + " points sent");
   }
-  return collectFinite(count, width, height, rgb != nullptr, source, [&](size_t i, PointT& p) {
-    p.x = xyz[3 * i];
-    p.y = xyz[3 * i + 1];
-    p.z = xyz[3 * i + 2];
-    if (rgb != nullptr) {
-      p.r = rgb[3 * i];
-      p.g = rgb[3 * i + 1];
-      p.b = rgb[3 * i + 2];
-    }
-  });
+  const auto* bytes = static_cast<const char*>(xyz);
+  return collectFinite(
+      count, width, height, rgb != nullptr, source,
+      [&](size_t i, PointT& p) {
+        float v[3];
+        std::memcpy(v, bytes + 12 * i, sizeof v);
+        p.x = v[0];
+        p.y = v[1];
+        p.z = v[2];
+        if (rgb != nullptr) {
+          p.r = rgb[3 * i];
+          p.g = rgb[3 * i + 1];
+          p.b = rgb[3 * i + 2];
+        }
+      },
+      reuse);
 }
 
 void savePcd(const Scene& scene, const std::string& path) {

@@ -28,9 +28,12 @@ Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrin
                      const std::string& source = "depth PNG");
 
 // Packed float32 xyz (and optional packed uint8 rgb) as sent over the wire. width*height must
-// equal the point count when organized (height > 1), else pass width = count, height = 1.
-Scene sceneFromPacked(const float* xyz, size_t count, const uint8_t* rgb, int width, int height,
-                      const std::string& source = "request");
+// equal the point count when organized (height > 1), else pass width = count, height = 1. `xyz`
+// need not be aligned (protobuf's bytes fields are not): it is read through memcpy, so callers
+// need no aligned copy. With `reuse`, its cloud and pixel indices are cleared and refilled, so
+// that a server worker decoding frame after frame keeps their allocations.
+Scene sceneFromPacked(const void* xyz, size_t count, const uint8_t* rgb, int width, int height,
+                      const std::string& source = "request", Scene* reuse = nullptr);
 
 // Writing, for debugging and for the shipped sample scene. savePcd writes binary PCD with the
 // sensor pose as VIEWPOINT; an organized scene is written organized (NaN where no point was
