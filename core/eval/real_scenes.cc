@@ -295,7 +295,7 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     start = std::chrono::steady_clock::now();
     FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled);
     run.front_end_ms = millisecondsSince(start);
-    run.surface_points = front.surface ? front.surface->size() : 0;
+    run.surface_points = front.surface_points;
     run.keypoints = front.features.size();
 
     double recognition_ms = 0;

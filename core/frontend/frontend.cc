@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <unordered_set>
 
 #include "core/common/error.h"
@@ -231,21 +232,36 @@ XyzCloud::Ptr smooth(const XyzCloud& cloud, const SmoothingParams& params) {
   return out;
 }
 
-Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params, const Eigen::Vector3f& viewpoint) {
+NormalEstimator::NormalEstimator(const XyzCloud& cloud, const NormalParams& params, const Eigen::Vector3f& viewpoint)
+    : cloud_(cloud), params_(params), viewpoint_(viewpoint) {
   requirePositive(params.radius, "normals.radius");
-  Surface::Ptr surface(new Surface);
-  if (cloud.empty()) return surface;
-  const NeighbourGrid grid(cloud, params.radius);
-  std::vector<pcl::PointNormal> points(cloud.size());
-  std::vector<uint8_t> defined(cloud.size(), 0);
-  grid.forEachPoint(params.radius, [&](int i, const std::vector<int>& neighbours) {
+  grid_ = std::make_unique<NeighbourGrid>(cloud, params.radius);
+  normals_.resize(cloud.size());
+  computed_.assign(cloud.size(), 0);
+  defined_.assign(cloud.size(), 0);
+}
+
+NormalEstimator::~NormalEstimator() = default;
+
+void NormalEstimator::computeAll() { compute(std::vector<uint8_t>(cloud_.size(), 1)); }
+
+void NormalEstimator::compute(const std::vector<uint8_t>& wanted) {
+  if (wanted.size() != cloud_.size()) {
+    throw Error(ErrorCode::kInternal, "NormalEstimator::compute: " + std::to_string(wanted.size()) + " flags for " +
+                                          std::to_string(cloud_.size()) + " points");
+  }
+  std::vector<uint8_t> todo(wanted.size());
+  for (size_t i = 0; i < wanted.size(); ++i) todo[i] = wanted[i] && !computed_[i];
+  grid_->forEachPoint(params_.radius, [&](int i, const std::vector<int>& neighbours) {
+    const auto at = static_cast<size_t>(i);
+    computed_[at] = 1;
     // The same PCA as pcl::NormalEstimation: undefined (NaN) below 3 neighbours.
     Eigen::Vector4f plane;
     float curvature = 0.0f;
-    if (!pcl::computePointNormal(cloud, neighbours, plane, curvature) || !plane.head<3>().allFinite()) return;
-    const pcl::PointXYZ& q = cloud[static_cast<size_t>(i)];
-    pcl::flipNormalTowardsViewpoint(q, viewpoint.x(), viewpoint.y(), viewpoint.z(), plane);
-    pcl::PointNormal& p = points[static_cast<size_t>(i)];
+    if (!pcl::computePointNormal(cloud_, neighbours, plane, curvature) || !plane.head<3>().allFinite()) return;
+    const pcl::PointXYZ& q = cloud_[at];
+    pcl::flipNormalTowardsViewpoint(q, viewpoint_.x(), viewpoint_.y(), viewpoint_.z(), plane);
+    pcl::PointNormal& p = normals_[at];
     p.x = q.x;
     p.y = q.y;
     p.z = q.z;
@@ -253,13 +269,57 @@ Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params, 
     p.normal_y = plane[1];
     p.normal_z = plane[2];
     p.curvature = curvature;
-    defined[static_cast<size_t>(i)] = 1;
-  });
-  surface->reserve(cloud.size());
-  for (size_t i = 0; i < cloud.size(); ++i) {
-    if (defined[i]) surface->push_back(points[i]);
+    defined_[at] = 1;
+  }, &todo);
+}
+
+std::vector<uint8_t> NormalEstimator::pointsNear(const std::vector<Eigen::Vector3f>& queries, float radius) const {
+  std::vector<uint8_t> near(cloud_.size(), 0);
+#pragma omp parallel
+  {
+    // Per thread, merged after: the balls overlap, and flags are bytes that threads may not share.
+    std::vector<uint8_t> mine(cloud_.size(), 0);
+    std::vector<int> indices;
+    std::vector<float> distances;
+#pragma omp for schedule(dynamic, 64) nowait
+    for (std::ptrdiff_t q = 0; q < static_cast<std::ptrdiff_t>(queries.size()); ++q) {
+      grid_->radiusSearch(queries[static_cast<size_t>(q)], radius, indices, distances);
+      for (int i : indices) mine[static_cast<size_t>(i)] = 1;
+    }
+#pragma omp critical(ism_points_near)
+    for (size_t i = 0; i < near.size(); ++i) near[i] |= mine[i];
+  }
+  return near;
+}
+
+void NormalEstimator::computeNear(const std::vector<int>& centres, float radius) {
+  std::vector<Eigen::Vector3f> queries;
+  queries.reserve(centres.size());
+  for (int c : centres) queries.push_back(cloud_.at(static_cast<size_t>(c)).getVector3fMap());
+  compute(pointsNear(queries, radius));
+}
+
+int NormalEstimator::nearestDefined(const Eigen::Vector3f& query, float max_distance) const {
+  return grid_->nearest(query, max_distance, &defined_);
+}
+
+Surface::Ptr NormalEstimator::surface(std::vector<int>* index_in_surface) const {
+  Surface::Ptr surface(new Surface);
+  if (index_in_surface != nullptr) index_in_surface->assign(cloud_.size(), -1);
+  for (size_t i = 0; i < cloud_.size(); ++i) {
+    if (!defined_[i]) continue;
+    if (index_in_surface != nullptr) (*index_in_surface)[i] = static_cast<int>(surface->size());
+    surface->push_back(normals_[i]);
   }
   return surface;
+}
+
+Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params, const Eigen::Vector3f& viewpoint) {
+  requirePositive(params.radius, "normals.radius");
+  if (cloud.empty()) return Surface::Ptr(new Surface);
+  NormalEstimator normals(cloud, params, viewpoint);
+  normals.computeAll();
+  return normals.surface();
 }
 
 std::vector<int> detectBoundaryKeypoints(const Surface& surface, const KeypointParams& params) {
@@ -351,44 +411,60 @@ std::vector<int> detectOccludingContourPixels(const Scene& scene, const ContourP
   return edges;
 }
 
-std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud, const std::vector<int>& point_indices,
-                                      float max_distance) {
-  requirePositive(max_distance, "nearestSurfacePoints max_distance");
-  for (int i : point_indices) {
-    if (i < 0 || static_cast<size_t>(i) >= cloud.size()) {
-      throw Error(ErrorCode::kInvalidInput, "edge point index " + std::to_string(i) + " is outside the cloud of " +
-                                                std::to_string(cloud.size()) + " points");
-    }
-  }
-  if (surface.empty() || point_indices.empty()) return {};
-  const NeighbourGrid grid(surface, max_distance);
-  std::vector<int> nearest_of(point_indices.size(), -1);
+namespace {
+
+// Ascending and unique: nearest(q) for each of `queries`, those not -1 (indices below `points`).
+template <class Nearest>
+std::vector<int> nearestOfEach(const std::vector<Eigen::Vector3f>& queries, size_t points, Nearest&& nearest) {
+  std::vector<int> nearest_of(queries.size(), -1);
 #pragma omp parallel for schedule(dynamic, 256)
-  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(point_indices.size()); ++i) {
-    nearest_of[i] = grid.nearest(cloud[point_indices[i]].getVector3fMap(), max_distance);
+  for (std::ptrdiff_t i = 0; i < static_cast<std::ptrdiff_t>(queries.size()); ++i) {
+    nearest_of[static_cast<size_t>(i)] = nearest(queries[static_cast<size_t>(i)]);
   }
-  std::vector<uint8_t> selected(surface.size(), 0);
+  std::vector<uint8_t> selected(points, 0);
   for (int n : nearest_of) {
-    if (n >= 0) selected[n] = 1;
+    if (n >= 0) selected[static_cast<size_t>(n)] = 1;
   }
   std::vector<int> indices;
-  for (size_t i = 0; i < surface.size(); ++i) {
+  for (size_t i = 0; i < points; ++i) {
     if (selected[i]) indices.push_back(static_cast<int>(i));
   }
   return indices;
 }
 
-std::vector<int> thinKeypoints(const Surface& surface, const std::vector<int>& keypoints, float spacing) {
+}  // namespace
+
+std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud, const std::vector<int>& point_indices,
+                                      float max_distance) {
+  requirePositive(max_distance, "nearestSurfacePoints max_distance");
+  std::vector<Eigen::Vector3f> queries;
+  queries.reserve(point_indices.size());
+  for (int i : point_indices) {
+    if (i < 0 || static_cast<size_t>(i) >= cloud.size()) {
+      throw Error(ErrorCode::kInvalidInput, "edge point index " + std::to_string(i) + " is outside the cloud of " +
+                                                std::to_string(cloud.size()) + " points");
+    }
+    queries.push_back(cloud[static_cast<size_t>(i)].getVector3fMap());
+  }
+  if (surface.empty() || queries.empty()) return {};
+  const NeighbourGrid grid(surface, max_distance);
+  return nearestOfEach(queries, surface.size(), [&](const Eigen::Vector3f& q) { return grid.nearest(q, max_distance); });
+}
+
+template <class PointT>
+std::vector<int> thinKeypoints(const pcl::PointCloud<PointT>& points, const std::vector<int>& keypoints, float spacing) {
   if (spacing == 0.0f) return keypoints;
   requirePositive(spacing, "keypoints.min_spacing");
   const float inverse_spacing = 1.0f / spacing;
   std::unordered_set<Cell, CellHash> taken;
   std::vector<int> kept;
   for (int k : keypoints) {
-    if (taken.insert(cellOf(surface.at(static_cast<size_t>(k)), inverse_spacing)).second) kept.push_back(k);
+    if (taken.insert(cellOf(points.at(static_cast<size_t>(k)), inverse_spacing)).second) kept.push_back(k);
   }
   return kept;
 }
+template std::vector<int> thinKeypoints(const Surface&, const std::vector<int>&, float);
+template std::vector<int> thinKeypoints(const XyzCloud&, const std::vector<int>&, float);
 
 std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, const KeypointParams& params,
                                  float leaf_size) {
@@ -400,6 +476,20 @@ std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, con
                                      leaf_size);
   }
   return thinKeypoints(surface, keypoints, params.min_spacing);
+}
+
+std::vector<int> detectContourKeypoints(const Scene& scene, NormalEstimator& normals, const KeypointParams& params,
+                                        float leaf_size) {
+  requirePositive(leaf_size, "nearestSurfacePoints max_distance");
+  const std::vector<int> pixels = detectOccludingContourPixels(scene, params.contour);
+  std::vector<Eigen::Vector3f> edges;
+  edges.reserve(pixels.size());
+  for (int i : pixels) edges.push_back((*scene.cloud)[static_cast<size_t>(i)].getVector3fMap());
+  // Only a point with a normal can be picked: first the normals of every point in reach.
+  normals.compute(normals.pointsNear(edges, leaf_size));
+  const std::vector<int> picked = nearestOfEach(
+      edges, normals.cloud().size(), [&](const Eigen::Vector3f& q) { return normals.nearestDefined(q, leaf_size); });
+  return thinKeypoints(normals.cloud(), picked, params.min_spacing);
 }
 
 Features describe(const Surface& surface, const std::vector<int>& keypoints, const ShotParams& params) {
@@ -427,18 +517,39 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     }
     throwIfStopped(should_stop, "smooth");
   }
-  {
-    ScopedStage stage(timings, "normals");
-    result.surface = estimateNormals(*points, params.normals, scene.sensor_origin);
-  }
-  throwIfStopped(should_stop, "normals");
+  result.surface_points = points->size();
   std::vector<int> keypoints;
-  {
-    ScopedStage stage(timings, "keypoints");
-    keypoints = detectKeypoints(scene, *result.surface, params.keypoints, params.downsample.leaf_size);
+  if (resolveKeypointMethod(params.keypoints.method, scene) == KeypointMethod::kBoundary) {
+    {
+      ScopedStage stage(timings, "normals");
+      result.surface = estimateNormals(*points, params.normals, scene.sensor_origin);
+    }
+    throwIfStopped(should_stop, "normals");
+    {
+      ScopedStage stage(timings, "keypoints");
+      keypoints = thinKeypoints(*result.surface, detectBoundaryKeypoints(*result.surface, params.keypoints),
+                                params.keypoints.min_spacing);
+    }
+    throwIfStopped(should_stop, "keypoints");
+  } else {
+    // Keypoints first, then the normals SHOT reads around them.
+    std::optional<NormalEstimator> normals;
+    {
+      ScopedStage stage(timings, "keypoints");
+      normals.emplace(*points, params.normals, scene.sensor_origin);
+      keypoints = detectContourKeypoints(scene, *normals, params.keypoints, params.downsample.leaf_size);
+    }
+    throwIfStopped(should_stop, "keypoints");
+    {
+      ScopedStage stage(timings, "normals");
+      normals->computeNear(keypoints, params.shot.radius);
+      std::vector<int> index_in_surface;
+      result.surface = normals->surface(&index_in_surface);
+      for (int& k : keypoints) k = index_in_surface[static_cast<size_t>(k)];
+    }
+    throwIfStopped(should_stop, "normals");
   }
   result.keypoint_candidates = keypoints.size();
-  throwIfStopped(should_stop, "keypoints");
   {
     ScopedStage stage(timings, "describe");
     result.features = describe(*result.surface, keypoints, params.shot);

@@ -3,6 +3,7 @@
 // the pixel grid, or boundary points for unorganized clouds) ->
 // SHOT descriptors with LRFs. Each stage is a free function with typed input, output and
 // parameter struct, testable alone; extractFeatures() chains them.
+#include <memory>
 #include <vector>
 
 #include "core/common/types.h"
@@ -11,6 +12,7 @@
 namespace ism {
 
 using XyzCloud = pcl::PointCloud<pcl::PointXYZ>;
+class NeighbourGrid;
 
 // Voxel-grid centroid downsampling.
 XyzCloud::Ptr downsample(const Cloud& cloud, const DownsampleParams& params);
@@ -18,7 +20,44 @@ XyzCloud::Ptr downsample(const Cloud& cloud, const DownsampleParams& params);
 // Moving Least Squares smoothing (points are moved onto the fitted surface).
 XyzCloud::Ptr smooth(const XyzCloud& cloud, const SmoothingParams& params);
 
-// PCA normals, flipped towards `viewpoint`. Points whose normal is undefined are removed.
+// PCA normals over params.radius, flipped towards `viewpoint`, computed for the points asked
+// for. SHOT reads the normals of the points within its radius of a keypoint only: on the Kinect
+// frames that is 9-28% of the points, so an organized scene, whose keypoints are known before its
+// normals, computes no others. A normal is undefined (and its point not part of the surface) with
+// fewer than 3 neighbours. `cloud` must outlive the estimator.
+class NormalEstimator {
+ public:
+  NormalEstimator(const XyzCloud& cloud, const NormalParams& params, const Eigen::Vector3f& viewpoint);
+  ~NormalEstimator();
+
+  void computeAll();
+  // The normals of the points with wanted[i] != 0 (one flag per cloud point) not computed yet.
+  void compute(const std::vector<uint8_t>& wanted);
+  // The normals of every point within `radius` of one of cloud[centres].
+  void computeNear(const std::vector<int>& centres, float radius);
+
+  const XyzCloud& cloud() const { return cloud_; }
+  // defined()[i]: point i's normal has been computed and is defined.
+  const std::vector<uint8_t>& defined() const { return defined_; }
+  // The nearest point with a defined normal within `max_distance` of `query`, or -1; only points
+  // whose normals have been computed count.
+  int nearestDefined(const Eigen::Vector3f& query, float max_distance) const;
+  // The flags of the points within `radius` of one of `queries`.
+  std::vector<uint8_t> pointsNear(const std::vector<Eigen::Vector3f>& queries, float radius) const;
+  // The points with a defined normal, in cloud order. index_in_surface (when not null) receives,
+  // per cloud point, its index in the surface or -1.
+  Surface::Ptr surface(std::vector<int>* index_in_surface = nullptr) const;
+
+ private:
+  const XyzCloud& cloud_;
+  NormalParams params_;
+  Eigen::Vector3f viewpoint_;
+  std::unique_ptr<NeighbourGrid> grid_;  // cells of the normals' radius
+  std::vector<pcl::PointNormal> normals_;
+  std::vector<uint8_t> computed_, defined_;
+};
+
+// Every point's normal (NormalEstimator::computeAll): the surface of the boundary test.
 Surface::Ptr estimateNormals(const XyzCloud& cloud, const NormalParams& params,
                              const Eigen::Vector3f& viewpoint);
 
@@ -41,7 +80,15 @@ std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud
                                       float max_distance);
 
 // The first of `keypoints` (in order) in each cube of edge `spacing`; spacing 0 keeps them all.
-std::vector<int> thinKeypoints(const Surface& surface, const std::vector<int>& keypoints, float spacing);
+template <class PointT>
+std::vector<int> thinKeypoints(const pcl::PointCloud<PointT>& points, const std::vector<int>& keypoints, float spacing);
+
+// Occluding-contour keypoints before any normal: indices into normals.cloud() (ascending) of
+// what nearestSurfacePoints picks for the contour pixels at max_distance = leaf_size, thinned to
+// params.min_spacing. Computes the normals of the points within leaf_size of a contour pixel
+// (a keypoint must have one). Throws ism::Error when the scene is not organized.
+std::vector<int> detectContourKeypoints(const Scene& scene, NormalEstimator& normals, const KeypointParams& params,
+                                        float leaf_size);
 
 // Indices into `surface` (the downsampled `scene`) of keypoints by params.method, thinned to
 // params.min_spacing. `leaf_size` is the downsampling voxel the surface was made with.
@@ -53,9 +100,12 @@ std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, con
 Features describe(const Surface& surface, const std::vector<int>& keypoints, const ShotParams& params);
 
 struct FrontEndResult {
-  Surface::Ptr surface;  // downsampled (and smoothed) points with normals
-  Features features;     // described keypoints
+  // Downsampled (and smoothed) points with normals: all of them for the boundary test, those
+  // near the keypoints (what SHOT reads) on organized scenes.
+  Surface::Ptr surface;
+  Features features;  // described keypoints
   size_t input_points = 0;
+  size_t surface_points = 0;  // downsampled (and smoothed) points, the surface keypoints are described on
   size_t keypoint_candidates = 0;  // detected keypoints before LRF filtering
 };
 

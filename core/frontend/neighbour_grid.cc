@@ -38,9 +38,13 @@ uint64_t NeighbourGrid::keyOf(int64_t x, int64_t y, int64_t z) const {
 }
 
 Eigen::Array3i NeighbourGrid::cellOf(const Eigen::Vector3f& p) const {
-  const Eigen::Vector3d scaled = (p.cast<double>() - origin_) / static_cast<double>(cell_size_);
-  return {static_cast<int>(clampCell(std::floor(scaled.x()))), static_cast<int>(clampCell(std::floor(scaled.y()))),
-          static_cast<int>(clampCell(std::floor(scaled.z())))};
+  // floor(p / cell) depends on the point and the cell size only, so a point falls in the same cell
+  // (and meets its neighbours in the same order) whatever else the cloud holds: a grid over part
+  // of a cloud answers exactly as one over all of it.
+  const Eigen::Vector3d scaled = p.cast<double>() * inverse_cell_exact_;
+  return {static_cast<int>(clampCell(std::floor(scaled.x()) - first_cell_.x())),
+          static_cast<int>(clampCell(std::floor(scaled.y()) - first_cell_.y())),
+          static_cast<int>(clampCell(std::floor(scaled.z()) - first_cell_.z()))};
 }
 
 void NeighbourGrid::build(std::vector<Eigen::Vector3f> points, float cell_size) {
@@ -58,7 +62,8 @@ void NeighbourGrid::build(std::vector<Eigen::Vector3f> points, float cell_size) 
   // bogus point in a user's cloud) push every real point past the 21-bit range into a few
   // clamped cells, and the searches became quadratic: normals on a 640x480 frame took 17-29 s
   // instead of 0.1 s. Only points more than 2^20 cells from the median share clamped cells now.
-  origin_ = Eigen::Vector3d::Zero();
+  inverse_cell_exact_ = 1.0 / static_cast<double>(cell_size);
+  first_cell_ = Eigen::Vector3d::Zero();
   std::vector<float> axis;
   axis.reserve(points.size());
   for (int a = 0; a < 3; ++a) {
@@ -69,7 +74,7 @@ void NeighbourGrid::build(std::vector<Eigen::Vector3f> points, float cell_size) 
     if (axis.empty()) continue;
     auto middle = axis.begin() + static_cast<std::ptrdiff_t>(axis.size() / 2);
     std::nth_element(axis.begin(), middle, axis.end());
-    origin_[a] = static_cast<double>(*middle) - static_cast<double>(kMaxCell / 2 + 1) * cell_size;
+    first_cell_[a] = std::floor(static_cast<double>(*middle) * inverse_cell_exact_) - static_cast<double>(kMaxCell / 2 + 1);
   }
 
   std::vector<std::pair<uint64_t, int>> keyed(points.size());
@@ -210,14 +215,19 @@ size_t NeighbourGrid::candidates(const Eigen::Vector3f& query, float radius) con
   return n;
 }
 
-int NeighbourGrid::nearest(const Eigen::Vector3f& query, float max_distance) const {
+int NeighbourGrid::nearest(const Eigen::Vector3f& query, float max_distance,
+                           const std::vector<uint8_t>* allowed) const {
   if (cells_.empty() || !(max_distance >= 0.0f) || !query.allFinite()) return -1;
+  if (allowed != nullptr && allowed->size() != original_index_.size()) {
+    throw Error(ErrorCode::kInternal, "NeighbourGrid::nearest: " + std::to_string(allowed->size()) +
+                                          " flags for " + std::to_string(original_index_.size()) + " points");
+  }
   float best = max_distance * max_distance;
   int best_index = -1;
   forEachCellAround(query, max_distance, [&](const Range& range) {
     for (uint32_t i = range.begin; i < range.end; ++i) {
       const float d2 = squaredDistance(i, query);
-      if (d2 > best) continue;
+      if (d2 > best || (allowed != nullptr && !(*allowed)[static_cast<size_t>(original_index_[i])])) continue;
       // Ties go to the lower original index so that the answer does not depend on cell order.
       if (d2 < best || best_index < 0 || original_index_[i] < best_index) {
         best = d2;
@@ -228,10 +238,16 @@ int NeighbourGrid::nearest(const Eigen::Vector3f& query, float max_distance) con
   return best_index;
 }
 
-void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, const std::vector<int>&)>& visit) const {
+void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, const std::vector<int>&)>& visit,
+                                 const std::vector<uint8_t>* only) const {
   if (!(radius >= 0.0f)) {
     throw Error(ErrorCode::kInvalidInput, "neighbour search radius " + std::to_string(radius) + " must be >= 0");
   }
+  if (only != nullptr && only->size() != original_index_.size()) {
+    throw Error(ErrorCode::kInternal, "NeighbourGrid::forEachPoint: " + std::to_string(only->size()) +
+                                          " flags for " + std::to_string(original_index_.size()) + " points");
+  }
+  const auto wanted = [&](uint32_t i) { return only == nullptr || (*only)[static_cast<size_t>(original_index_[i])]; };
   const float r2 = radius * radius;
   const int s = span(radius);
 #pragma omp parallel
@@ -242,6 +258,9 @@ void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, con
 #pragma omp for schedule(dynamic, 64)
     for (std::ptrdiff_t cell = 0; cell < static_cast<std::ptrdiff_t>(cells_.size()); ++cell) {
       const Range& home = cells_[static_cast<size_t>(cell)];
+      bool any = false;
+      for (uint32_t i = home.begin; i < home.end && !any; ++i) any = wanted(i);
+      if (!any) continue;
       // The cells around this one are looked up once for all of its points.
       around.clear();
       forEachCellNear(static_cast<int64_t>(home.key >> 42), static_cast<int64_t>((home.key >> 21) & kMaxCell),
@@ -250,6 +269,7 @@ void NeighbourGrid::forEachPoint(float radius, const std::function<void(int, con
       for (const Range* range : around) candidates += range->end - range->begin;
       distances.resize(candidates);
       for (uint32_t i = home.begin; i < home.end; ++i) {
+        if (!wanted(i)) continue;
         const float px = x_[i], py = y_[i], pz = z_[i];
         // Distances first, in a loop over contiguous coordinates that vectorises; then a
         // branch-free compaction: about half of the candidates are inside, so a branch on the

@@ -43,13 +43,16 @@ class NeighbourGrid {
   // How many points a search of `radius` around `query` compares: the cost of one search.
   size_t candidates(const Eigen::Vector3f& query, float radius) const;
 
-  // The nearest point within `max_distance` of `query`, or -1.
-  int nearest(const Eigen::Vector3f& query, float max_distance) const;
+  // The nearest point within `max_distance` of `query`, or -1. With `allowed`, only points i with
+  // allowed[i] != 0 count.
+  int nearest(const Eigen::Vector3f& query, float max_distance, const std::vector<uint8_t>* allowed = nullptr) const;
 
-  // Calls visit(i, neighbours) for every point i of the cloud with the indices of the points
-  // within `radius` of it (i itself included), in parallel over OpenMP's threads. `visit` must
-  // be safe to call concurrently for different i. The neighbour list is only valid during the call.
-  void forEachPoint(float radius, const std::function<void(int, const std::vector<int>&)>& visit) const;
+  // Calls visit(i, neighbours) for every point i of the cloud (with `only`, those with only[i] != 0)
+  // with the indices of the points within `radius` of it (i itself included), in parallel over
+  // OpenMP's threads. `visit` must be safe to call concurrently for different i. The neighbour list
+  // is only valid during the call.
+  void forEachPoint(float radius, const std::function<void(int, const std::vector<int>&)>& visit,
+                    const std::vector<uint8_t>* only = nullptr) const;
 
  private:
   struct Range {
@@ -75,7 +78,10 @@ class NeighbourGrid {
 
   float cell_size_ = 1.0f;
   float inverse_cell_ = 1.0f;
-  Eigen::Vector3d origin_ = Eigen::Vector3d::Zero();  // double: it lies ~10^6 cells away from the points
+  double inverse_cell_exact_ = 1.0;
+  // Cell coordinates are floor(p / cell) - first_cell_, which puts the median point's cell at the
+  // middle of the 21-bit range (double: ~10^6 cells away from the points).
+  Eigen::Vector3d first_cell_ = Eigen::Vector3d::Zero();
   // The points ordered by cell, one array per coordinate so that distances to a run of them
   // vectorise.
   std::vector<float> x_, y_, z_;

@@ -902,7 +902,7 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
   const FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled,
                                                &result.timings, options.should_stop);
   result.input_points = front.input_points;
-  result.surface_points = front.surface ? front.surface->size() : 0;
+  result.surface_points = front.surface_points;
   recognizePlanned(model, plan, front.features, options, result);
   return result;
 }

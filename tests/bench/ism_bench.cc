@@ -81,6 +81,7 @@ struct Inputs {
   RecognitionOptions options;  // the service's defaults: global codebook, trained k-NN, LW
   // Each stage's input, made once by the stage before it (with every thread).
   XyzCloud::Ptr downsampled, smoothed;
+  bool organized = false;  // occluding-contour keypoints, found before the normals
   Surface::Ptr surface;
   std::vector<int> keypoints;
   Features features;
@@ -108,8 +109,18 @@ void prepareInputs() {
   setThreads(processors());
   in.downsampled = downsample(*in.scene.cloud, fe.downsample);
   in.smoothed = fe.smoothing.enabled ? smooth(*in.downsampled, fe.smoothing) : in.downsampled;
-  in.surface = estimateNormals(*in.smoothed, fe.normals, in.scene.sensor_origin);
-  in.keypoints = detectKeypoints(in.scene, *in.surface, fe.keypoints, fe.downsample.leaf_size);
+  in.organized = resolveKeypointMethod(fe.keypoints.method, in.scene) == KeypointMethod::kOccludingContour;
+  if (in.organized) {  // as extractFeatures: keypoints first, then the normals around them
+    NormalEstimator normals(*in.smoothed, fe.normals, in.scene.sensor_origin);
+    in.keypoints = detectContourKeypoints(in.scene, normals, fe.keypoints, fe.downsample.leaf_size);
+    normals.computeNear(in.keypoints, fe.shot.radius);
+    std::vector<int> index_in_surface;
+    in.surface = normals.surface(&index_in_surface);
+    for (int& k : in.keypoints) k = index_in_surface[static_cast<size_t>(k)];
+  } else {
+    in.surface = estimateNormals(*in.smoothed, fe.normals, in.scene.sensor_origin);
+    in.keypoints = detectKeypoints(in.scene, *in.surface, fe.keypoints, fe.downsample.leaf_size);
+  }
   in.features = describe(*in.surface, in.keypoints, fe.shot);
   in.activations = in.model.global_codebook->activate(in.features.descriptors, in.options.strategy.activation);
   const Strategy& s = in.options.strategy;
@@ -122,8 +133,8 @@ void prepareInputs() {
     in.thresholds.push_back(it->second);
   }
   std::cerr << "ism-bench: " << in.scene.source << ": " << in.scene.cloud->size() << " points ("
-            << in.scene.image_width << "x" << in.scene.image_height << "), " << in.surface->size()
-            << " surface points, " << in.keypoints.size() << " keypoints, " << in.features.size()
+            << in.scene.image_width << "x" << in.scene.image_height << "), " << in.smoothed->size()
+            << " surface points (" << in.surface->size() << " with normals), " << in.keypoints.size() << " keypoints, " << in.features.size()
             << " described; model " << c.model_path << " (" << in.model.categories.size() << " categories)\n";
 }
 
@@ -153,21 +164,43 @@ void BM_Smooth(benchmark::State& state) {
   state.counters["points"] = static_cast<double>(in.downsampled->size());
 }
 
+// Organized scenes: the normals within SHOT's radius of the keypoints, from an estimator that
+// has the keypoints' (made untimed each iteration, as the keypoints stage does); otherwise every
+// point's.
 void BM_Normals(benchmark::State& state) {
   setCommon(state);
   const Inputs& in = inputs();
+  const FrontEndParams& fe = in.model.front_end;
+  size_t computed = 0;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(estimateNormals(*in.smoothed, in.model.front_end.normals, in.scene.sensor_origin));
+    if (!in.organized) {
+      computed = estimateNormals(*in.smoothed, fe.normals, in.scene.sensor_origin)->size();
+      continue;
+    }
+    state.PauseTiming();
+    NormalEstimator normals(*in.smoothed, fe.normals, in.scene.sensor_origin);
+    const std::vector<int> keypoints = detectContourKeypoints(in.scene, normals, fe.keypoints, fe.downsample.leaf_size);
+    state.ResumeTiming();
+    normals.computeNear(keypoints, fe.shot.radius);
+    computed = normals.surface()->size();
   }
   state.counters["points"] = static_cast<double>(in.smoothed->size());
+  state.counters["with_normals"] = static_cast<double>(computed);
 }
 
+// Organized scenes: contours, the grid of the normals and the normals of the points a contour
+// pixel may pick; otherwise the boundary test over every point's normal.
 void BM_Keypoints(benchmark::State& state) {
   setCommon(state);
   const Inputs& in = inputs();
   const FrontEndParams& fe = in.model.front_end;
   for (auto _ : state) {
-    benchmark::DoNotOptimize(detectKeypoints(in.scene, *in.surface, fe.keypoints, fe.downsample.leaf_size));
+    if (in.organized) {
+      NormalEstimator normals(*in.smoothed, fe.normals, in.scene.sensor_origin);
+      benchmark::DoNotOptimize(detectContourKeypoints(in.scene, normals, fe.keypoints, fe.downsample.leaf_size));
+    } else {
+      benchmark::DoNotOptimize(detectKeypoints(in.scene, *in.surface, fe.keypoints, fe.downsample.leaf_size));
+    }
   }
   state.counters["keypoints"] = static_cast<double>(in.keypoints.size());
 }
@@ -456,8 +489,14 @@ void registerBenchmarks() {
   };
   stage("frame/downsample", BM_Downsample);
   if (inputs().model.front_end.smoothing.enabled) stage("frame/smooth", BM_Smooth);
-  stage("frame/normals", BM_Normals);
-  stage("frame/keypoints", BM_Keypoints);
+  // In the order extractFeatures runs them.
+  if (inputs().organized) {
+    stage("frame/keypoints", BM_Keypoints);
+    stage("frame/normals", BM_Normals);
+  } else {
+    stage("frame/normals", BM_Normals);
+    stage("frame/keypoints", BM_Keypoints);
+  }
   stage("frame/describe", BM_Describe);
   stage("frame/activate", BM_Activate);
   stage("frame/vote", BM_Vote);

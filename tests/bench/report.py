@@ -99,7 +99,8 @@ def main():
     def row(measure, one="", many="", grpc="", overhead="", pcl="", ratio="", r=""):
         rows.append([measure, one, many, grpc, overhead, pcl, ratio, r])
 
-    stages = [("downsample", "voxel grid"), ("smooth", "MLS"), ("normals", "PCA"), ("keypoints", "contours / boundary"),
+    # An organized frame's keypoints come before its normals (computed only near them).
+    stages = [("downsample", "voxel grid"), ("smooth", "MLS"), ("keypoints", "contours / boundary"), ("normals", "PCA"),
               ("describe", "SHOT + LRF"), ("activate", "codebook"), ("vote", "4 Hough spaces"),
               ("hypotheses", "peaks, support, boxes")]
     for key, what in stages:

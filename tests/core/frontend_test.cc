@@ -416,7 +416,8 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   const FrontEndResult result = extractFeatures(scene, FrontEndParams{}, /*apply_smoothing=*/true, &timings);
   std::vector<std::string> names;
   for (const auto& stage : timings.stages) names.push_back(stage.first);
-  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "smooth", "normals", "keypoints", "describe"}));
+  // An organized scene's keypoints come first: normals are computed only around them.
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "smooth", "keypoints", "normals", "describe"}));
   // A model trained with `ism-train --no-scene-smoothing` stores this: scenes then skip MLS.
   FrontEndParams unsmoothed;
   unsmoothed.smoothing.enabled = false;
@@ -424,6 +425,14 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   extractFeatures(scene, unsmoothed, /*apply_smoothing=*/true, &unsmoothed_timings);
   names.clear();
   for (const auto& stage : unsmoothed_timings.stages) names.push_back(stage.first);
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "keypoints", "normals", "describe"}));
+  // The boundary test reads every point's normal.
+  Scene unorganized = scene;
+  unorganized.pixel_index.clear();
+  StageTimings boundary_timings;
+  extractFeatures(unorganized, unsmoothed, /*apply_smoothing=*/true, &boundary_timings);
+  names.clear();
+  for (const auto& stage : boundary_timings.stages) names.push_back(stage.first);
   EXPECT_EQ(names, (std::vector<std::string>{"downsample", "normals", "keypoints", "describe"}));
   EXPECT_EQ(result.input_points, scene.cloud->size());
   EXPECT_GE(result.keypoint_candidates, result.features.size());
@@ -440,6 +449,37 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
       EXPECT_NEAR(p.x(), void_x, 0.03f) << "keypoint on the wall away from its silhouette: " << p.transpose();
     }
   }
+}
+
+// extractFeatures computes an organized scene's normals only near its keypoints; the features
+// must be exactly those of the stages run on every point's normal.
+void expectFeaturesOfTheFullSurface(const Scene& scene, const FrontEndParams& params) {
+  const FrontEndResult result = extractFeatures(scene, params, /*apply_smoothing=*/true);
+  const XyzCloud::Ptr points = params.smoothing.enabled ? smooth(*downsample(*scene.cloud, params.downsample), params.smoothing)
+                                                        : downsample(*scene.cloud, params.downsample);
+  const Surface::Ptr full = estimateNormals(*points, params.normals, scene.sensor_origin);
+  const std::vector<int> keypoints = detectKeypoints(scene, *full, params.keypoints, params.downsample.leaf_size);
+  const Features expected = describe(*full, keypoints, params.shot);
+  EXPECT_EQ(result.surface_points, points->size());
+  EXPECT_EQ(result.keypoint_candidates, keypoints.size());
+  EXPECT_LT(result.surface->size(), full->size()) << "every normal was computed";
+  ASSERT_GT(expected.size(), 10u);
+  EXPECT_EQ(result.features.positions, expected.positions);
+  EXPECT_EQ(result.features.lrfs, expected.lrfs);
+  EXPECT_EQ(result.features.descriptors, expected.descriptors);
+}
+
+TEST(ExtractFeatures, NormalsNearTheKeypointsGiveTheFeaturesOfTheWholeSurface) {
+  FrontEndParams params;
+  expectFeaturesOfTheFullSurface(boxOnFloorBeforeWall().scene, params);
+  params.smoothing.enabled = false;
+  expectFeaturesOfTheFullSurface(boxOnFloorBeforeWall().scene, params);
+  params.keypoints.min_spacing = 0.03f;
+  expectFeaturesOfTheFullSurface(boxOnFloorBeforeWall().scene, params);
+  const std::string path = std::string(ISM_SHARED_DATA_DIR) + "/real/kinect/tum_desk.pcd";
+  if (!std::filesystem::exists(path)) GTEST_SKIP() << "shared data not present: " << path;
+  params.keypoints.min_spacing = 0.0f;
+  expectFeaturesOfTheFullSurface(loadCloudFile(path), params);
 }
 
 #ifdef _OPENMP
@@ -481,15 +521,18 @@ TEST(ExtractFeatures, RealKinectFrame) {
   const Scene scene = loadCloudFile(path);
   StageTimings timings;
   const FrontEndResult result = extractFeatures(scene, FrontEndParams{}, /*apply_smoothing=*/true, &timings);
-  std::cout << "tum_desk: " << result.input_points << " points -> " << result.surface->size() << " surface -> "
-            << result.keypoint_candidates << " keypoints -> " << result.features.size() << " features;";
+  std::cout << "tum_desk: " << result.input_points << " points -> " << result.surface_points << " surface ("
+            << result.surface->size() << " with normals) -> " << result.keypoint_candidates << " keypoints -> "
+            << result.features.size() << " features;";
   for (const auto& stage : timings.stages) std::cout << " " << stage.first << " " << stage.second << " ms";
   std::cout << "; total " << timings.total() << " ms\n";
-  EXPECT_GT(result.surface->size(), 10000u);
+  EXPECT_GT(result.surface_points, 10000u);
   EXPECT_GT(result.features.size(), 1000u);
   // The seed's boundary test made 14,452 of the 83,847 surface points keypoints, mostly on the
   // quantised floor and walls; occluding contours keep 4% (measured 3,393).
-  EXPECT_LT(result.keypoint_candidates, result.surface->size() / 10);
+  EXPECT_LT(result.keypoint_candidates, result.surface_points / 10);
+  // SHOT reads the normals within 8 cm of a keypoint: 28% of this frame's points (measured 23,984).
+  EXPECT_LT(result.surface->size(), result.surface_points / 2);
   expectUnitDescriptorsAndRotationFrames(result.features);
 }
 
@@ -597,14 +640,64 @@ TEST(NeighbourGrid, RadiusSearchNearestAndForEachPointMatchBruteForce) {
         if (best < 0 || (points[i] - q).squaredNorm() < (points[best] - q).squaredNorm()) best = i;
       }
       EXPECT_EQ(grid.nearest(q, r), best);
+      // Only the allowed points (every third) count.
+      std::vector<uint8_t> allowed(points.size(), 0);
+      for (size_t i = 0; i < points.size(); i += 3) allowed[i] = 1;
+      int best_allowed = -1;
+      for (int i : exact) {
+        if (allowed[i] && (best_allowed < 0 || (points[i] - q).squaredNorm() < (points[best_allowed] - q).squaredNorm())) {
+          best_allowed = i;
+        }
+      }
+      EXPECT_EQ(grid.nearest(q, r, &allowed), best_allowed);
     }
   }
   std::vector<std::set<int>> visited(points.size());
   grid.forEachPoint(0.05f, [&](int i, const std::vector<int>& n) { visited[i] = std::set<int>(n.begin(), n.end()); });
   for (size_t i = 0; i < points.size(); ++i) ASSERT_EQ(visited[i], bruteForce(points, points[i], 0.05f)) << i;
+  // Visiting some points gives them the same neighbour lists, in the same order.
+  std::vector<std::vector<int>> all(points.size()), some(points.size());
+  grid.forEachPoint(0.05f, [&](int i, const std::vector<int>& n) { all[i] = n; });
+  std::vector<uint8_t> only(points.size(), 0);
+  for (size_t i = 0; i < points.size(); i += 7) only[i] = 1;
+  grid.forEachPoint(0.05f, [&](int i, const std::vector<int>& n) { some[i] = n; }, &only);
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (only[i]) {
+      ASSERT_EQ(some[i], all[i]) << i;
+    } else {
+      ASSERT_TRUE(some[i].empty()) << "point " << i << " was not asked for";
+    }
+  }
   std::vector<int> capped;
   std::vector<float> unused;
   EXPECT_EQ(grid.radiusSearch(points[0], 0.3f, capped, unused, 5), 5u);
+}
+
+TEST(NeighbourGrid, AGridOverPartOfTheCloudFindsTheSameNeighboursInTheSameOrder) {
+  // SHOT's grid over the points that have normals must answer as one over every point: cells
+  // are fixed by the cell size, not by where the cloud's median lies.
+  const auto points = randomSurfacePoints(4000, 11);
+  std::vector<Eigen::Vector3f> half;
+  std::vector<int> index_in_full;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (points[i].x() < 0.1f) {  // shifts the median by a fraction of a cell
+      half.push_back(points[i]);
+      index_in_full.push_back(static_cast<int>(i));
+    }
+  }
+  const NeighbourGrid full(points, 0.08f), part(half, 0.08f);
+  std::vector<int> in_full, in_part;
+  std::vector<float> d_full, d_part;
+  for (size_t q = 0; q < half.size(); q += 5) {
+    full.radiusSearch(half[q], 0.08f, in_full, d_full);
+    part.radiusSearch(half[q], 0.08f, in_part, d_part);
+    std::vector<int> expected;
+    for (int i : in_full) {
+      if (points[static_cast<size_t>(i)].x() < 0.1f) expected.push_back(i);
+    }
+    for (int& i : in_part) i = index_in_full[static_cast<size_t>(i)];
+    ASSERT_EQ(in_part, expected) << q;
+  }
 }
 
 TEST(NeighbourGrid, ExtremeAndDegenerateInputsStayExact) {
