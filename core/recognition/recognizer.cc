@@ -180,7 +180,8 @@ class VoteCaster {
         table_(votesOf(category_, strategy.codebook)),
         features_(features),
         weighting_(strategy.weighting),
-        offsets_(features.size() + 1, 0) {
+        offsets_(features.size() + 1, 0),
+        vote_offsets_(features.size() + 1, 0) {
     if (table_.empty()) return;
     const int codewords = static_cast<int>(table_.offsets.size()) - 1;
     for (const auto& a : activations) {
@@ -196,6 +197,8 @@ class VoteCaster {
       votes_ += table_.occurrences(a.codeword);
     }
     for (size_t k = 0; k < features.size(); ++k) offsets_[k + 1] += offsets_[k];
+    for (const auto& a : activations) vote_offsets_[static_cast<size_t>(a.keypoint) + 1] += table_.occurrences(a.codeword);
+    for (size_t k = 0; k < features.size(); ++k) vote_offsets_[k + 1] += vote_offsets_[k];
     by_keypoint_.resize(activations.size());
     std::vector<uint32_t> cursor(offsets_.begin(), offsets_.end() - 1);
     for (const auto& a : activations) by_keypoint_[cursor[static_cast<size_t>(a.keypoint)]++] = a;
@@ -253,42 +256,69 @@ class VoteCaster {
     return any;
   }
 
-  // Calls f(chunk) for the votes of keypoint k, chunk by chunk.
+  // The index of keypoint k's first vote in the order votes are cast (forEachChunk).
+  size_t firstVote(size_t k) const { return vote_offsets_[k]; }
+
+  // Calls f(weight, first, last) for each of keypoint k's activations with votes, in order: its
+  // votes are those of table_ rows [first, last), each with that weight.
   template <typename F>
-  void forEachChunk(size_t k, VoteChunk& chunk, F&& f) const {
+  void forEachActivation(size_t k, F&& f) const {
     const uint32_t begin = offsets_[k], end = offsets_[k + 1];
-    if (begin == end) return;
-    const Eigen::Matrix3f& r = features_.lrfs[k];  // scene -> LRF; votes go back with its transpose
-    const Eigen::Vector3f& o = features_.positions[k];
     const float activated = static_cast<float>(end - begin);
     for (uint32_t i = begin; i < end; ++i) {
       const Activation& a = by_keypoint_[i];
       const uint32_t first = table_.offsets[static_cast<size_t>(a.codeword)];
       const uint32_t last = table_.offsets[static_cast<size_t>(a.codeword) + 1];
       if (first == last) continue;
-      chunk.weight = 1.0f;
+      float weight = 1.0f;
       if (weighting_ != VoteWeighting::kCategorization) {
-        chunk.weight = 1.0f / (activated * static_cast<float>(last - first));
-        if (weighting_ == VoteWeighting::kActivation) chunk.weight *= 1.0f - a.distance / 2.0f;
+        weight = 1.0f / (activated * static_cast<float>(last - first));
+        if (weighting_ == VoteWeighting::kActivation) weight *= 1.0f - a.distance / 2.0f;
       }
+      f(weight, first, last);
+    }
+  }
+
+  // Calls f(chunk) for the votes of keypoint k, chunk by chunk.
+  template <typename F>
+  void forEachChunk(size_t k, VoteChunk& chunk, F&& f) const {
+    const Eigen::Matrix3f& r = features_.lrfs[k];  // scene -> LRF; votes go back with its transpose
+    const Eigen::Vector3f& o = features_.positions[k];
+    forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
+      chunk.weight = weight;
       for (uint32_t start = first; start < last; start += kChunk) {
         chunk.size = std::min(kChunk, last - start);
         const float *vx = vx_.get() + start, *vy = vy_.get() + start, *vz = vz_.get() + start;
         // One coordinate per loop: four coefficients, which stay in registers.
-        for (uint32_t j = 0; j < chunk.size; ++j) chunk.x[j] = o.x() + (r(0, 0) * vx[j] + r(1, 0) * vy[j] + r(2, 0) * vz[j]);
-        for (uint32_t j = 0; j < chunk.size; ++j) chunk.y[j] = o.y() + (r(0, 1) * vx[j] + r(1, 1) * vy[j] + r(2, 1) * vz[j]);
-        for (uint32_t j = 0; j < chunk.size; ++j) chunk.z[j] = o.z() + (r(0, 2) * vx[j] + r(1, 2) * vy[j] + r(2, 2) * vz[j]);
+        for (uint32_t j = 0; j < chunk.size; ++j) chunk.x[j] = cast(o.x(), r(0, 0), r(1, 0), r(2, 0), vx[j], vy[j], vz[j]);
+        for (uint32_t j = 0; j < chunk.size; ++j) chunk.y[j] = cast(o.y(), r(0, 1), r(1, 1), r(2, 1), vx[j], vy[j], vz[j]);
+        for (uint32_t j = 0; j < chunk.size; ++j) chunk.z[j] = cast(o.z(), r(0, 2), r(1, 2), r(2, 2), vx[j], vy[j], vz[j]);
         f(static_cast<const VoteChunk&>(chunk));
       }
-    }
+    });
+  }
+
+  // Where vote v (a row of table_) of keypoint k lands: the same floats forEachChunk gives it.
+  Eigen::Vector3f position(size_t k, uint32_t v) const {
+    const Eigen::Matrix3f& r = features_.lrfs[k];
+    const Eigen::Vector3f& o = features_.positions[k];
+    return {cast(o.x(), r(0, 0), r(1, 0), r(2, 0), vx_[v], vy_[v], vz_[v]),
+            cast(o.y(), r(0, 1), r(1, 1), r(2, 1), vx_[v], vy_[v], vz_[v]),
+            cast(o.z(), r(0, 2), r(1, 2), r(2, 2), vx_[v], vy_[v], vz_[v])};
   }
 
  private:
+  // One coordinate of a vote: o + column of R . v, in this order of operations everywhere.
+  static float cast(float o, float r0, float r1, float r2, float vx, float vy, float vz) {
+    return o + (r0 * vx + r1 * vy + r2 * vz);
+  }
+
   const CategoryModel& category_;
   const VoteTable& table_;
   const Features& features_;
   VoteWeighting weighting_;
   std::vector<uint32_t> offsets_;  // activations of keypoint k: by_keypoint_[offsets_[k] .. offsets_[k+1])
+  std::vector<size_t> vote_offsets_;  // votes of keypoint k: [vote_offsets_[k], vote_offsets_[k+1])
   std::vector<Activation> by_keypoint_;
   size_t votes_ = 0;
   // The vectors of table_ by coordinate, filled for the activated codewords only.
@@ -433,24 +463,34 @@ struct HoughSpace::Impl {
   float inverse_bin_size;
   std::optional<BinGrid> grid;  // the bins when set, else `hashed`
   BinMap<BinSum> hashed;
+  // With the grid: vote i's bin, block * kBlockBins + place, in the order votes are cast; or empty.
+  std::vector<uint32_t> vote_bins;
 };
 
 HoughSpace::HoughSpace(const Model& model, int category_index, const Features& features,
-                       const std::vector<Activation>& activations, const Strategy& strategy, size_t max_grid_bins)
+                       const std::vector<Activation>& activations, const Strategy& strategy, size_t max_grid_bins,
+                       size_t max_kept_vote_bins)
     : impl_(new Impl{VoteCaster(model, category_index, features, activations, strategy), 0, std::nullopt, {}}) {
   Impl& impl = *impl_;
   const VoteCaster& caster = impl.caster;
   const float inverse_bin_size = impl.inverse_bin_size = 1.0f / caster.category().bin_size;
   if (const std::optional<GridBox> box = gridBox(caster, inverse_bin_size, max_grid_bins)) {
+    const bool keep_bins = caster.votes() <= std::min(max_kept_vote_bins, kMaxKeptVoteBins);
+    if (keep_bins) impl.vote_bins.resize(caster.votes());
     auto parts = perThreadRanges<std::optional<BinGrid>>(caster.keypoints(), kKeypointsPerThread,
                                                          [&](std::optional<BinGrid>& grid, size_t begin, size_t end) {
       grid.emplace(box->first, box->bins);
       VoteChunk chunk;
       for (size_t k = begin; k < end; ++k) {
+        uint32_t* kept = keep_bins ? impl.vote_bins.data() + caster.firstVote(k) : nullptr;
         caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
           const ChunkCells in(votes, inverse_bin_size, *grid);
           for (uint32_t j = 0; j < votes.size; ++j) {
             add(grid->block(in.block[j])[in.place[j]], votes.weight, votes.x[j], votes.y[j], votes.z[j]);
+          }
+          if (kept == nullptr) return;
+          for (uint32_t j = 0; j < votes.size; ++j) {
+            *kept++ = static_cast<uint32_t>(in.block[j]) * BinGrid::kBlockBins + static_cast<uint32_t>(in.place[j]);
           }
         });
       }
@@ -502,6 +542,8 @@ size_t HoughSpace::bins() const {
 }
 
 bool HoughSpace::gridded() const { return impl_->grid.has_value(); }
+
+bool HoughSpace::keptVoteBins() const { return !impl_->vote_bins.empty(); }
 
 namespace {
 
@@ -620,12 +662,11 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
   // Cast the votes again and look only at those in the bins of a candidate's cube. (Skipping
   // codewords whose votes are all too short to reach a candidate saved nothing measurable in room
   // scans: votes reach across the objects, candidates are all over the room.)
-  const auto support = [&](Support& s, const VoteChunk& votes, uint32_t j, const Range& range, int k) {
-    const Eigen::Vector3f p = votes.position(j);
+  const auto support = [&](Support& s, const Eigen::Vector3f& p, float weight, const Range& range, int k) {
     for (uint32_t i = range.begin; i < range.end; ++i) {
       const uint32_t c = near[i].second;
       const bool inside = insideCube(p, candidates[c].center, half_edge);
-      s.score[c] += inside ? votes.weight : 0.0f;  // adding zero to the sum changes nothing
+      s.score[c] += inside ? weight : 0.0f;  // adding zero to the sum changes nothing
       auto& keypoints = s.keypoints[c];
       if (inside & (keypoints.empty() || keypoints.back() != k)) keypoints.push_back(k);
     }
@@ -659,19 +700,51 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       const auto place = static_cast<uint32_t>(BinGrid::placeOf(bin.x(), bin.y(), bin.z()));
       near_ranges[slot * BinGrid::kBlockBins + place] = r + 1;
     }
+    const auto nearRange = [&](uint32_t block, uint32_t place) {
+      return near_ranges[near_block[block] * BinGrid::kBlockBins + place];
+    };
+    if (!impl.vote_bins.empty()) {
+      parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
+        s.score.assign(candidates.size(), 0.0);
+        s.keypoints.resize(candidates.size());
+        const uint32_t* bins = impl.vote_bins.data();
+        for (size_t k = begin; k < end; ++k) {
+          const uint32_t* bin = bins + caster.firstVote(k);
+          caster.forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
+            for (uint32_t start = first; start < last; start += kChunk) {
+              const uint32_t n = std::min(kChunk, last - start);
+              // As below: the ranges of the votes near a candidate, gathered without branching.
+              uint32_t hit[kChunk], range[kChunk], hits = 0;
+              for (uint32_t j = 0; j < n; ++j) {
+                const uint32_t r = nearRange(bin[j] / BinGrid::kBlockBins, bin[j] % BinGrid::kBlockBins);
+                hit[hits] = start + j;
+                range[hits] = r;
+                hits += r != 0;
+              }
+              for (uint32_t h = 0; h < hits; ++h) {
+                support(s, caster.position(k, hit[h]), weight, ranges[range[h] - 1], static_cast<int>(k));
+              }
+              bin += n;
+            }
+          });
+        }
+      });
+    } else {
     parts = recast([&](Support& s, const VoteChunk& votes, size_t k) {
       const ChunkCells in(votes, inverse_bin_size, grid);
       // Most votes miss every cube: the ranges of the others are gathered without branching.
       uint32_t hit[kChunk], range[kChunk], hits = 0;
       for (uint32_t j = 0; j < votes.size; ++j) {
-        const uint32_t r = near_ranges[near_block[static_cast<size_t>(in.block[j])] * BinGrid::kBlockBins +
-                                       static_cast<uint32_t>(in.place[j])];
+        const uint32_t r = nearRange(static_cast<uint32_t>(in.block[j]), static_cast<uint32_t>(in.place[j]));
         hit[hits] = j;
         range[hits] = r;
         hits += r != 0;
       }
-      for (uint32_t h = 0; h < hits; ++h) support(s, votes, hit[h], ranges[range[h] - 1], static_cast<int>(k));
+      for (uint32_t h = 0; h < hits; ++h) {
+        support(s, votes.position(hit[h]), votes.weight, ranges[range[h] - 1], static_cast<int>(k));
+      }
     });
+    }
   } else {
     BinMap<uint32_t> range_of;  // 1 + the range of a bin
     // Most votes land far from every candidate. A 32 KB bitmap of the bins near candidates (one
@@ -693,7 +766,7 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
         const uint64_t bit = filterBit(key);
         if (!(near_filter[bit >> 6] >> (bit & 63) & 1)) continue;
         const uint32_t* r = range_of.find(key);
-        if (r != nullptr) support(s, votes, j, ranges[*r - 1], static_cast<int>(k));
+        if (r != nullptr) support(s, votes.position(j), votes.weight, ranges[*r - 1], static_cast<int>(k));
       }
     });
   }

@@ -245,20 +245,31 @@ HandMadeObject randomScene(std::mt19937& rng) {
 const std::pair<VoteWeighting, float> kRandomSceneThresholds[] = {
     {VoteWeighting::kCategorization, 7.0f}, {VoteWeighting::kLocalization, 0.15f}, {VoteWeighting::kActivation, 0.12f}};
 
-// Both ways of keeping the bins: the grid over the votes' box (the default here) and the hash map.
+// Every way of keeping the bins: the grid over the votes' box with each vote's bin (the default
+// here), the grid alone (votes cast again to find the peaks' support), and the hash map.
+struct BinStorage {
+  const char* name;
+  size_t max_grid_bins, max_kept_vote_bins;
+};
+constexpr BinStorage kBinStorages[] = {{"grid with vote bins", HoughSpace::kMaxGridBins, HoughSpace::kMaxKeptVoteBins},
+                                       {"grid", HoughSpace::kMaxGridBins, 0},
+                                       {"hashed", 0, 0}};
+
 TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
   std::mt19937 rng(7);
   const HandMadeObject scene = randomScene(rng);
   const Model m = modelWithVotes(scene.votes);
   const CategoryModel& category = m.categories[0];
   for (auto [weighting, threshold] : kRandomSceneThresholds) {
-    for (const size_t max_grid_bins : {HoughSpace::kMaxGridBins, size_t{0}}) {
-      SCOPED_TRACE(std::string(toString(weighting)) + (max_grid_bins > 0 ? " grid" : " hashed"));
+    for (const BinStorage& storage : kBinStorages) {
+      SCOPED_TRACE(std::string(toString(weighting)) + " " + storage.name);
+      const size_t max_grid_bins = storage.max_grid_bins;
       const Strategy st = strategy(weighting);
       const auto votes = castVotes(m, 0, scene.features, scene.activations, st);
       const auto expected = referencePeaks(votes, scene.features, category, threshold);
-      const HoughSpace hough(m, 0, scene.features, scene.activations, st, max_grid_bins);
+      const HoughSpace hough(m, 0, scene.features, scene.activations, st, max_grid_bins, storage.max_kept_vote_bins);
       EXPECT_EQ(hough.gridded(), max_grid_bins > 0);
+      EXPECT_EQ(hough.keptVoteBins(), storage.max_kept_vote_bins > 0);
       EXPECT_EQ(hough.votes(), votes.size());
       const auto actual = hough.findPeaks(threshold);
       ASSERT_GE(expected.size(), 10u);  // the objects and clutter maxima
@@ -279,7 +290,8 @@ TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
         EXPECT_EQ(a.category, category.name);
       }
       // Same input, same answer: thread scheduling must not leak into the sums.
-      const auto again = HoughSpace(m, 0, scene.features, scene.activations, st, max_grid_bins).findPeaks(threshold);
+      const auto again = HoughSpace(m, 0, scene.features, scene.activations, st, max_grid_bins,
+                                    storage.max_kept_vote_bins).findPeaks(threshold);
       ASSERT_EQ(again.size(), actual.size());
       for (size_t i = 0; i < again.size(); ++i) {
         EXPECT_EQ(again[i].score, actual[i].score);
@@ -320,12 +332,16 @@ TEST(FindPeaks, GridAndHashedBinsGiveTheSameHypotheses) {
     const Strategy st = strategy(weighting);
     const HoughSpace grid(m, 0, scene.features, scene.activations, st);
     const HoughSpace hashed(m, 0, scene.features, scene.activations, st, 0);
-    ASSERT_TRUE(grid.gridded());
+    const HoughSpace cast_again(m, 0, scene.features, scene.activations, st, HoughSpace::kMaxGridBins, 0);
+    ASSERT_TRUE(grid.gridded() && grid.keptVoteBins());
     ASSERT_FALSE(hashed.gridded());
+    ASSERT_TRUE(cast_again.gridded() && !cast_again.keptVoteBins());
     EXPECT_EQ(grid.bins(), hashed.bins());
     const auto peaks = grid.findPeaks(threshold);
     EXPECT_GE(peaks.size(), 10u);
     expectSameHypotheses(peaks, hashed.findPeaks(threshold));
+    // A vote's position is computed again only where it lands near a candidate: the same bits.
+    expectSameHypotheses(peaks, cast_again.findPeaks(threshold));
   }
 }
 
@@ -375,9 +391,10 @@ TEST(FindPeaks, VotesOnTheFacesOfTheCubeCount) {
   const Model m = modelWithVotes(votes, 0.5f);
   const Strategy cw = strategy(VoteWeighting::kCategorization);
   const auto cast = castVotes(m, 0, f, activations, cw);
-  for (const size_t max_grid_bins : {HoughSpace::kMaxGridBins, size_t{0}}) {
-    const HoughSpace hough(m, 0, f, activations, cw, max_grid_bins);
-    EXPECT_EQ(hough.gridded(), max_grid_bins > 0);
+  for (const BinStorage& storage : kBinStorages) {
+    SCOPED_TRACE(storage.name);
+    const HoughSpace hough(m, 0, f, activations, cw, storage.max_grid_bins, storage.max_kept_vote_bins);
+    EXPECT_EQ(hough.gridded(), storage.max_grid_bins > 0);
     const auto peaks = hough.findPeaks(5.0f);
     ASSERT_EQ(peaks.size(), 1u);
     EXPECT_EQ(peaks[0].center, Eigen::Vector3f(0.25f, 0.25f, 0.25f));
