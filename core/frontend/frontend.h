@@ -1,8 +1,9 @@
 #pragma once
-// The front end: cloud -> downsampled surface with normals -> keypoints (occluding contours of
-// the pixel grid, or boundary points for unorganized clouds) ->
-// SHOT descriptors with LRFs. Each stage is a free function with typed input, output and
-// parameter struct, testable alone; extractFeatures() chains them.
+// The front end: cloud -> downsampled points -> keypoints and normals -> SHOT descriptors with
+// LRFs. An organized scene's keypoints (occluding contours of the pixel grid) come first and
+// normals only around them; an unorganized cloud's (boundary points) need every normal first.
+// Each stage is a free function (or NormalEstimator) with typed input, output and parameter
+// struct, testable alone; extractFeatures() chains them.
 #include <memory>
 #include <vector>
 
