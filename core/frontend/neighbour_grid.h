@@ -40,6 +40,10 @@ class NeighbourGrid {
   size_t radiusSearch(const Eigen::Vector3f& query, float radius, std::vector<int>& indices,
                       std::vector<float>& squared_distances, size_t max_results = 0) const;
 
+  // Per cloud point, 1 when it is within `radius` of one of `queries`: the union of their
+  // radiusSearch results (non-finite queries find nothing). In parallel over OpenMP's threads.
+  std::vector<uint8_t> pointsWithin(const std::vector<Eigen::Vector3f>& queries, float radius) const;
+
   // How many points a search of `radius` around `query` compares: the cost of one search.
   size_t candidates(const Eigen::Vector3f& query, float radius) const;
 
@@ -50,9 +54,36 @@ class NeighbourGrid {
   // Calls visit(i, neighbours) for every point i of the cloud (with `only`, those with only[i] != 0)
   // with the indices of the points within `radius` of it (i itself included), in parallel over
   // OpenMP's threads. `visit` must be safe to call concurrently for different i. The neighbour list
-  // is only valid during the call.
+  // is only valid during the call. The order of the list is fixed by the cell size and the points
+  // (cells in ascending x, y, z, then cloud order within a cell), as radiusSearch's is.
   void forEachPoint(float radius, const std::function<void(int, const std::vector<int>&)>& visit,
                     const std::vector<uint8_t>* only = nullptr) const;
+
+  // One point's neighbours as forEachPoint lists them, with their coordinates: neighbour k
+  // (k < size()) is cloud point index(k) at (x(k), y(k), z(k)), the coordinates the grid was
+  // built from; point() is the visited point's. Valid only during the visit.
+  class Neighbourhood {
+   public:
+    Eigen::Vector3f point() const { return {x_[centre_], y_[centre_], z_[centre_]}; }
+    size_t size() const { return size_; }
+    int index(size_t k) const { return index_[at_[k]]; }
+    float x(size_t k) const { return x_[at_[k]]; }
+    float y(size_t k) const { return y_[at_[k]]; }
+    float z(size_t k) const { return z_[at_[k]]; }
+
+   private:
+    friend class NeighbourGrid;
+    const float *x_ = nullptr, *y_ = nullptr, *z_ = nullptr;  // the grid's arrays
+    const int* index_ = nullptr;
+    uint32_t centre_ = 0;           // the visited point's position in them
+    const uint32_t* at_ = nullptr;  // the neighbours' positions in them
+    size_t size_ = 0;
+  };
+  // forEachPoint for visitors that read the neighbours' coordinates (PCA normals): no index list
+  // is built, and the coordinates come from the grid's arrays, where the neighbours lie close
+  // together, rather than from all over the cloud.
+  void forEachNeighbourhood(float radius, const std::function<void(int, const Neighbourhood&)>& visit,
+                            const std::vector<uint8_t>* only = nullptr) const;
 
  private:
   struct Range {
@@ -64,9 +95,20 @@ class NeighbourGrid {
   uint64_t slotOf(uint64_t key) const;
   Eigen::Array3i cellOf(const Eigen::Vector3f& p) const;
   const Range* findColumn(uint64_t column_key) const;
-  // visit(range) for each occupied cell within `s` cells of cell (cx, cy, cz) on every axis.
+  // visit(range) for each occupied cell within `s` cells of cell (cx, cy, cz) on every axis, in
+  // ascending key order (x, then y, then z).
   template <class Visit>
   void forEachCellNear(int64_t cx, int64_t cy, int64_t cz, int s, Visit&& visit) const;
+  // Its two halves: visit(column) for each column within `s` of column (cx, cy), in ascending
+  // key order, and visit(range) for each cell of `column` within `s` of cz on the z axis.
+  template <class Visit>
+  void forEachColumnNear(int64_t cx, int64_t cy, int s, Visit&& visit) const;
+  template <class Visit>
+  void forEachCellOfColumn(const Range& column, int64_t cz, int s, Visit&& visit) const;
+  // The loop behind forEachPoint and forEachNeighbourhood: visit(original index, Neighbourhood,
+  // scratch), with a Scratch per thread.
+  template <class Scratch, class Visit>
+  void visitNeighbourhoods(float radius, const std::vector<uint8_t>* only, Visit&& visit) const;
   // visit(range) for each occupied cell that may hold points within `radius` of `query`.
   template <class Visit>
   void forEachCellAround(const Eigen::Vector3f& query, float radius, Visit&& visit) const;
@@ -83,7 +125,7 @@ class NeighbourGrid {
   // middle of the 21-bit range (double: ~10^6 cells away from the points).
   Eigen::Vector3d first_cell_ = Eigen::Vector3d::Zero();
   // The points ordered by cell, one array per coordinate so that distances to a run of them
-  // vectorise.
+  // vectorise; 3 zeros follow the last point.
   std::vector<float> x_, y_, z_;
   std::vector<int> original_index_;  // sorted point i was point original_index_[i]
   std::vector<Range> cells_;         // one per occupied cell, ascending key
