@@ -8,6 +8,8 @@
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
+#include <malloc.h>
+
 #include <CLI/CLI.hpp>
 #include <csignal>
 #include <cstring>
@@ -33,6 +35,15 @@ std::string defaultModelDirectory() {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Keep freed memory for the next request. A recognition allocates and frees tens of MB (sort
+  // buffers, grids, Hough blocks) on its worker thread; with glibc's defaults the freed pages
+  // went back to the kernel after every request and the next one faulted them in again: on
+  // two threads a Kinect frame took 52 ms in the server against 46 ms in process (downsample
+  // alone 8.2 against 5.0 ms). Blocks below 32 MB (the largest glibc allows here) come from
+  // the heap, and a heap keeps up to 256 MB free at its top.
+  mallopt(M_MMAP_THRESHOLD, 32 * 1024 * 1024);
+  mallopt(M_TRIM_THRESHOLD, 256 * 1024 * 1024);
+
   // Block the stop signals before any thread exists, so that every thread inherits the mask
   // and only sigwait() below ever sees them.
   sigset_t stop_signals;
