@@ -169,7 +169,7 @@ def main():
     print(f'Frame rows: {ctx.get("scene")} ({ctx.get("scene_points")} points, {ctx.get("scene_keypoints")} described '
           f'keypoints; {ctx.get("scene_note")}), model {ctx.get("model")} ({ctx.get("categories")} categories), '
           f'medians of {reps} repetitions, wall-clock time; {procs} processors, load average at the start {load_avg}. '
-          f'gRPC: unary Recognize of the same frame (packed organized cloud with colour, '
+          f'gRPC: unary Recognize of the same frame (packed organized cloud as ism-client sends it: xyz, no colour, '
           f'{fmt(bench.counter(f"grpc/recognize/threads:{all_t}", "request_MB"), 1)} MB) to a real ism-server on '
           f'127.0.0.1 started as `ism-server --threads 1 --threads-per-request` the column\'s threads; overhead = gRPC / in process - 1. Server memory: `ism-server` with its defaults.')
     if peer and "params" in peer:
