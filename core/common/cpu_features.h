@@ -13,28 +13,25 @@
 
 namespace ism {
 
-inline bool cpuHasAvx2() {
+struct CpuFeatures {
+  bool avx2 = false, avx512f = false;
+};
+
+// Asked once per process: __builtin_cpu_supports takes only a literal feature name.
+inline const CpuFeatures& cpuFeatures() {
+  static const CpuFeatures features = [] {
+    CpuFeatures f;
 #if ISM_X86_KERNELS
-  static const bool has = [] {
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") != 0;
-  }();
-  return has;
-#else
-  return false;
+    f.avx2 = __builtin_cpu_supports("avx2") != 0;
+    f.avx512f = __builtin_cpu_supports("avx512f") != 0;
 #endif
+    return f;
+  }();
+  return features;
 }
 
-inline bool cpuHasAvx512f() {
-#if ISM_X86_KERNELS
-  static const bool has = [] {
-    __builtin_cpu_init();
-    return __builtin_cpu_supports("avx512f") != 0;
-  }();
-  return has;
-#else
-  return false;
-#endif
-}
+inline bool cpuHasAvx2() { return cpuFeatures().avx2; }
+inline bool cpuHasAvx512f() { return cpuFeatures().avx512f; }
 
 }  // namespace ism

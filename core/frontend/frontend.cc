@@ -662,8 +662,7 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     throwIfStopped(should_stop, "normals");
     {
       ScopedStage stage(timings, "keypoints");
-      keypoints = thinKeypoints(*result.surface, detectBoundaryKeypoints(*result.surface, params.keypoints),
-                                params.keypoints.min_spacing);
+      keypoints = detectKeypoints(scene, *result.surface, params.keypoints, params.downsample.leaf_size);
     }
     throwIfStopped(should_stop, "keypoints");
   } else {

@@ -671,17 +671,34 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       if (inside & (keypoints.empty() || keypoints.back() != k)) keypoints.push_back(k);
     }
   };
-  // Every vote once, keypoint ranges split between threads: onChunk(s, votes, keypoint) adds a
-  // chunk's votes that land in a cube's bins; the storage paths differ only in finding the bin.
-  const auto recast = [&](const auto& onChunk) {
+  // Every vote once, keypoint ranges split between threads: onKeypoint(s, chunk, k) adds the
+  // votes of keypoint k that land in a cube's bins (`chunk`: the thread's buffer to cast them
+  // into); the storage paths differ only in finding a vote's bin.
+  const auto recast = [&](const auto& onKeypoint) {
     return perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
       s.score.assign(candidates.size(), 0.0);
       s.keypoints.resize(candidates.size());
       VoteChunk chunk;
-      for (size_t k = begin; k < end; ++k) {
-        caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) { onChunk(s, votes, k); });
-      }
+      for (size_t k = begin; k < end; ++k) onKeypoint(s, chunk, k);
     });
+  };
+  // recast, casting each keypoint's votes again: onChunk(s, votes, k) per chunk of them.
+  const auto castAgain = [&](const auto& onChunk) {
+    return recast([&](Support& s, VoteChunk& chunk, size_t k) {
+      caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) { onChunk(s, votes, k); });
+    });
+  };
+  // Most votes miss every cube: the (index, 1 + range) of the n votes rangeOf(j) finds near a
+  // candidate are gathered without branching. Returns how many.
+  const auto gatherNear = [](uint32_t n, const auto& rangeOf, uint32_t* hit, uint32_t* range) {
+    uint32_t hits = 0;
+    for (uint32_t j = 0; j < n; ++j) {
+      const uint32_t r = rangeOf(j);
+      hit[hits] = j;
+      range[hits] = r;
+      hits += r != 0;
+    }
+    return hits;
   };
   std::vector<Support> parts;
   if (impl.grid) {
@@ -704,46 +721,34 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       return near_ranges[near_block[block] * BinGrid::kBlockBins + place];
     };
     if (!impl.vote_bins.empty()) {
-      parts = perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
-        s.score.assign(candidates.size(), 0.0);
-        s.keypoints.resize(candidates.size());
-        const uint32_t* bins = impl.vote_bins.data();
-        for (size_t k = begin; k < end; ++k) {
-          const uint32_t* bin = bins + caster.firstVote(k);
-          caster.forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
-            for (uint32_t start = first; start < last; start += kChunk) {
-              const uint32_t n = std::min(kChunk, last - start);
-              // As below: the ranges of the votes near a candidate, gathered without branching.
-              uint32_t hit[kChunk], range[kChunk], hits = 0;
-              for (uint32_t j = 0; j < n; ++j) {
-                const uint32_t r = nearRange(bin[j] / BinGrid::kBlockBins, bin[j] % BinGrid::kBlockBins);
-                hit[hits] = start + j;
-                range[hits] = r;
-                hits += r != 0;
-              }
-              for (uint32_t h = 0; h < hits; ++h) {
-                support(s, caster.position(k, hit[h]), weight, ranges[range[h] - 1], static_cast<int>(k));
-              }
-              bin += n;
+      parts = recast([&](Support& s, VoteChunk&, size_t k) {
+        const uint32_t* bin = impl.vote_bins.data() + caster.firstVote(k);
+        caster.forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
+          for (uint32_t start = first; start < last; start += kChunk) {
+            const uint32_t n = std::min(kChunk, last - start);
+            uint32_t hit[kChunk], range[kChunk];
+            const uint32_t hits = gatherNear(
+                n, [&](uint32_t j) { return nearRange(bin[j] / BinGrid::kBlockBins, bin[j] % BinGrid::kBlockBins); },
+                hit, range);
+            for (uint32_t h = 0; h < hits; ++h) {
+              support(s, caster.position(k, start + hit[h]), weight, ranges[range[h] - 1], static_cast<int>(k));
             }
-          });
-        }
+            bin += n;
+          }
+        });
       });
     } else {
-    parts = recast([&](Support& s, const VoteChunk& votes, size_t k) {
-      const ChunkCells in(votes, inverse_bin_size, grid);
-      // Most votes miss every cube: the ranges of the others are gathered without branching.
-      uint32_t hit[kChunk], range[kChunk], hits = 0;
-      for (uint32_t j = 0; j < votes.size; ++j) {
-        const uint32_t r = nearRange(static_cast<uint32_t>(in.block[j]), static_cast<uint32_t>(in.place[j]));
-        hit[hits] = j;
-        range[hits] = r;
-        hits += r != 0;
-      }
-      for (uint32_t h = 0; h < hits; ++h) {
-        support(s, votes.position(hit[h]), votes.weight, ranges[range[h] - 1], static_cast<int>(k));
-      }
-    });
+      parts = castAgain([&](Support& s, const VoteChunk& votes, size_t k) {
+        const ChunkCells in(votes, inverse_bin_size, grid);
+        uint32_t hit[kChunk], range[kChunk];
+        const uint32_t hits = gatherNear(
+            votes.size,
+            [&](uint32_t j) { return nearRange(static_cast<uint32_t>(in.block[j]), static_cast<uint32_t>(in.place[j])); },
+            hit, range);
+        for (uint32_t h = 0; h < hits; ++h) {
+          support(s, votes.position(hit[h]), votes.weight, ranges[range[h] - 1], static_cast<int>(k));
+        }
+      });
     }
   } else {
     BinMap<uint32_t> range_of;  // 1 + the range of a bin
@@ -759,7 +764,7 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       const uint64_t bit = filterBit(key);
       near_filter[bit >> 6] |= uint64_t{1} << (bit & 63);
     }
-    parts = recast([&](Support& s, const VoteChunk& votes, size_t k) {
+    parts = castAgain([&](Support& s, const VoteChunk& votes, size_t k) {
       const ChunkBins in(votes, inverse_bin_size);
       for (uint32_t j = 0; j < votes.size; ++j) {
         const BinKey key = in.key(j);
