@@ -8,7 +8,7 @@
 #include <filesystem>
 
 #include "core/common/error.h"
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "core/model/model_file.h"
 #include "ism/v1/model.pb.h"
 

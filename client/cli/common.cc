@@ -11,6 +11,7 @@
 
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 
 namespace ism::client {
 

@@ -20,7 +20,8 @@
 
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
-#include "core/recognition/recognizer.h"
+#include "core/recognition/box_selection.h"
+#include "core/recognition/voting.h"
 
 namespace ism {
 namespace {
