@@ -6,8 +6,11 @@
 
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+
+#include "core/common/gravity_frame.h"
 #include <chrono>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -49,6 +52,9 @@ struct Scene {
   int image_height = 0;
   std::vector<int> pixel_index;
   std::string source;  // file name or "request", for messages
+  // Up in the cloud's frame when the caller knows it (a robot's TF, an accelerometer, a
+  // gravity-levelled room scan); otherwise the gravity stage looks for the floor.
+  std::optional<Eigen::Vector3f> up;
 };
 
 // Rows are descriptors (352 floats for SHOT); row-major so FLANN can index it in place.
@@ -61,6 +67,13 @@ struct Features {
   // lrf * v turns a scene vector into LRF coordinates, lrf.transpose() * v turns it back.
   std::vector<Eigen::Matrix3f> lrfs;
   DescriptorMatrix descriptors;
+  // From the gravity stage, when the front end ran it: up and the floor, and per keypoint its
+  // height above the floor (when there is one), its surface normal turned towards the sensor and
+  // the direction from it to the centroid of its support (what upright vote frames are made of).
+  std::optional<Gravity> gravity;
+  std::vector<float> heights;
+  std::vector<Eigen::Vector3f> normals;
+  std::vector<Eigen::Vector3f> support_directions;
   size_t size() const { return positions.size(); }
 };
 

@@ -1,4 +1,5 @@
 #include "core/common/upright_box.h"
+#include "core/common/gravity_frame.h"
 
 #include <algorithm>
 #include <array>
@@ -49,6 +50,18 @@ float area(const std::vector<Point2>& polygon) {
 }
 
 }  // namespace
+
+const char* toString(UpSource source) {
+  switch (source) {
+    case UpSource::kGiven:
+      return "given";
+    case UpSource::kFloor:
+      return "floor";
+    case UpSource::kAssumed:
+      return "assumed";
+  }
+  return "?";
+}
 
 Eigen::Matrix3f gravityRotation(const Eigen::Vector3f& up) {
   const Eigen::Vector3f z = up.normalized();

@@ -9,11 +9,6 @@
 
 namespace ism {
 
-// A rotation from scene coordinates into a frame whose z axis is `up` (unit length). The x axis is
-// the scene's x (or y, when x is nearly vertical) made horizontal, so that the frame is the same
-// for every call with the same up.
-Eigen::Matrix3f gravityRotation(const Eigen::Vector3f& up);
-
 struct UprightBox {
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // gravity frame
   Eigen::Vector3f size = Eigen::Vector3f::Zero();    // along the box's own x, y and up

@@ -5,6 +5,7 @@
 
 #include "core/common/error.h"
 #include "core/frontend/shot.h"
+#include "core/frontend/upright_geometry.h"
 
 namespace ism {
 
@@ -34,16 +35,49 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     throwIfStopped(should_stop, "smooth");
   }
   result.surface_points = points->size();
+  // Floor and walls: their points stay in the surface descriptors are computed over, but are
+  // never keypoints.
+  std::vector<PlaneLabel> planes;
+  if (params.gravity.enabled) {
+    ScopedStage stage(timings, "gravity");
+    std::vector<Eigen::Vector3f> positions(points->size());
+    for (size_t i = 0; i < points->size(); ++i) positions[i] = (*points)[i].getVector3fMap();
+    // The optical frame's up, -y, wherever the sensor's pose turns it.
+    const Eigen::Vector3f sensor_up = scene.sensor_orientation * Eigen::Vector3f(0, -1, 0);
+    GravityResult found = estimateGravity(positions, scene.sensor_origin, sensor_up, scene.up, params.gravity);
+    result.gravity = found.gravity;
+    planes = std::move(found.labels);
+  }
+  const auto offPlanes = [&](std::vector<int> candidates, const std::vector<int>& point_of) {
+    if (planes.empty()) return candidates;
+    std::vector<int> kept;
+    for (int k : candidates) {
+      const int point = point_of.empty() ? k : point_of[static_cast<size_t>(k)];
+      if (planes[static_cast<size_t>(point)] == PlaneLabel::kNone) kept.push_back(k);
+    }
+    return kept;
+  };
   std::vector<int> keypoints;
   if (resolveKeypointMethod(params.keypoints.method, scene) == KeypointMethod::kBoundary) {
+    std::vector<int> point_of_surface;
     {
       ScopedStage stage(timings, "normals");
-      result.surface = estimateNormals(*points, params.normals, scene.sensor_origin);
+      NormalEstimator normals(*points, params.normals, scene.sensor_origin);
+      normals.computeAll();
+      std::vector<int> index_in_surface;
+      result.surface = normals.surface(&index_in_surface);
+      if (!planes.empty()) {
+        point_of_surface.resize(result.surface->size());
+        for (size_t i = 0; i < index_in_surface.size(); ++i) {
+          if (index_in_surface[i] >= 0) point_of_surface[static_cast<size_t>(index_in_surface[i])] = static_cast<int>(i);
+        }
+      }
     }
     throwIfStopped(should_stop, "normals");
     {
       ScopedStage stage(timings, "keypoints");
-      keypoints = detectKeypoints(scene, *result.surface, params.keypoints, params.downsample.leaf_size);
+      keypoints = offPlanes(detectKeypoints(scene, *result.surface, params.keypoints, params.downsample.leaf_size),
+                            point_of_surface);
     }
     throwIfStopped(should_stop, "keypoints");
   } else {
@@ -52,7 +86,7 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     {
       ScopedStage stage(timings, "keypoints");
       normals.emplace(*points, params.normals, scene.sensor_origin);
-      keypoints = detectContourKeypoints(scene, *normals, params.keypoints, params.downsample.leaf_size);
+      keypoints = offPlanes(detectContourKeypoints(scene, *normals, params.keypoints, params.downsample.leaf_size), {});
     }
     throwIfStopped(should_stop, "keypoints");
     {
@@ -67,7 +101,9 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
   result.keypoint_candidates = keypoints.size();
   {
     ScopedStage stage(timings, "describe");
-    result.features = describe(*result.surface, keypoints, params.shot);
+    std::vector<int> described;
+    result.features = computeShot(*result.surface, keypoints, params.shot, &described);
+    if (result.gravity) addUprightGeometry(*result.surface, described, *result.gravity, params.shot.radius, result.features);
   }
   return result;
 }

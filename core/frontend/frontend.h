@@ -1,16 +1,20 @@
 #pragma once
-// The front end: cloud -> downsampled points -> keypoints and normals -> SHOT descriptors with
-// LRFs. An organized scene's keypoints (occluding contours of the pixel grid) come first and
-// normals only around them; an unorganized cloud's (boundary points) need every normal first.
+// The front end: cloud -> downsampled points -> up, floor and walls -> keypoints off floor and
+// walls, and normals -> SHOT descriptors with LRFs and the keypoints' upright geometry. An
+// organized scene's keypoints (occluding contours of the pixel grid) come first and normals only
+// around them; an unorganized cloud's (boundary points) need every normal first.
 // Each stage has its own file, a free function (or NormalEstimator) with typed input, output
 // and parameter struct (params.h), testable alone:
 //   downsample.h          voxel-grid centroids
 //   smoothing.h           Moving Least Squares (scenes only)
+//   ../gravity/gravity.h  up, the floor and walls
+//   upright_geometry.h    heights, normals and support directions of the keypoints
 //   normals.h             PCA normals towards the sensor
 //   keypoints.h           which detector, boundary points, thinning
 //   occluding_contours.h  the detector of organized scenes
 //   shot.h                SHOT descriptors and their LRFs
 // extractFeatures() chains them.
+#include <optional>
 #include <vector>
 
 #include "core/common/types.h"
@@ -34,7 +38,8 @@ struct FrontEndResult {
   Features features;  // described keypoints
   size_t input_points = 0;
   size_t surface_points = 0;  // downsampled (and smoothed) points, the surface keypoints are described on
-  size_t keypoint_candidates = 0;  // detected keypoints before LRF filtering
+  size_t keypoint_candidates = 0;  // detected keypoints (off floor and walls) before LRF filtering
+  std::optional<Gravity> gravity;  // when params.gravity.enabled; also in features.gravity
 };
 
 // The whole chain. `apply_smoothing` is true for scenes and false for training scans

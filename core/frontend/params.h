@@ -5,6 +5,8 @@
 // keypoint detector on organized scenes: occluding contours instead of boundary points.
 #include <cmath>
 
+#include "core/gravity/gravity.h"
+
 namespace ism {
 
 struct DownsampleParams {
@@ -69,6 +71,7 @@ struct ShotParams {
 struct FrontEndParams {
   DownsampleParams downsample;
   SmoothingParams smoothing;
+  GravityParams gravity;
   NormalParams normals;
   KeypointParams keypoints;
   ShotParams shot;

@@ -187,20 +187,6 @@ std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vect
 
 }  // namespace
 
-const char* toString(UpSource source) {
-  switch (source) {
-    case UpSource::kGiven:
-      return "given";
-    case UpSource::kFloor:
-      return "floor";
-    case UpSource::kAssumed:
-      return "assumed";
-  }
-  return "?";
-}
-
-Eigen::Matrix3f Gravity::toGravity() const { return gravityRotation(up); }
-
 GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& sensor_origin,
                               const Eigen::Vector3f& sensor_up, const std::optional<Eigen::Vector3f>& given_up,
                               const GravityParams& params) {

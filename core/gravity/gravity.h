@@ -16,9 +16,14 @@
 #include <string>
 #include <vector>
 
+#include "core/common/gravity_frame.h"
+
 namespace ism {
 
 struct GravityParams {
+  // Find up, the floor and walls, and keep keypoints off floor and walls. Off in the seed's
+  // pipeline, which knows nothing of gravity.
+  bool enabled = true;
   // Estimated up: the floor's normal lies within this angle of the sensor's up.
   float max_tilt_deg = 45.0f;
   // Given up: the floor is searched among planes within this angle of it.
@@ -45,29 +50,6 @@ struct GravityParams {
   int iterations = 300;          // RANSAC hypotheses per plane
   size_t sample_points = 20000;  // planes are scored on this many points spread over the scene
   uint32_t seed = 1;             // the same scene always gives the same planes
-};
-
-enum class UpSource {
-  kGiven,    // the caller's
-  kFloor,    // the normal of the floor found in the scene
-  kAssumed,  // no floor found: the sensor's up (the optical frame's -y), unchecked
-};
-const char* toString(UpSource source);
-
-struct Gravity {
-  Eigen::Vector3f up = Eigen::Vector3f::UnitZ();  // unit, scene coordinates
-  UpSource source = UpSource::kAssumed;
-  // The floor plane is { p : up . p = floor_level } when found.
-  std::optional<float> floor_level;
-  size_t floor_points = 0;  // points on the floor plane
-  size_t wall_points = 0;   // points on walls
-  int walls = 0;
-
-  bool hasFloor() const { return floor_level.has_value(); }
-  // Height of p above the floor; only meaningful when hasFloor().
-  float height(const Eigen::Vector3f& p) const { return up.dot(p) - floor_level.value_or(0.0f); }
-  // Scene -> a frame whose z is up (gravityRotation(up)).
-  Eigen::Matrix3f toGravity() const;
 };
 
 // Per point of a cloud: what large plane it lies on.

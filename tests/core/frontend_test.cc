@@ -112,7 +112,7 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   std::vector<std::string> names;
   for (const auto& stage : timings.stages) names.push_back(stage.first);
   // An organized scene's keypoints come first: normals are computed only around them.
-  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "smooth", "keypoints", "normals", "describe"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "smooth", "gravity", "keypoints", "normals", "describe"}));
   // A model trained with `ism-train --no-scene-smoothing` stores this: scenes then skip MLS.
   FrontEndParams unsmoothed;
   unsmoothed.smoothing.enabled = false;
@@ -120,7 +120,7 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   extractFeatures(scene, unsmoothed, /*apply_smoothing=*/true, &unsmoothed_timings);
   names.clear();
   for (const auto& stage : unsmoothed_timings.stages) names.push_back(stage.first);
-  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "keypoints", "normals", "describe"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "gravity", "keypoints", "normals", "describe"}));
   // The boundary test reads every point's normal.
   Scene unorganized = scene;
   unorganized.pixel_index.clear();
@@ -128,7 +128,7 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   extractFeatures(unorganized, unsmoothed, /*apply_smoothing=*/true, &boundary_timings);
   names.clear();
   for (const auto& stage : boundary_timings.stages) names.push_back(stage.first);
-  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "normals", "keypoints", "describe"}));
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "gravity", "normals", "keypoints", "describe"}));
   EXPECT_EQ(result.input_points, scene.cloud->size());
   EXPECT_GE(result.keypoint_candidates, result.features.size());
   ASSERT_GT(result.features.size(), 50u);
@@ -147,8 +147,10 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
 }
 
 // extractFeatures computes an organized scene's normals only near its keypoints; the features
-// must be exactly those of the stages run on every point's normal.
-void expectFeaturesOfTheFullSurface(const Scene& scene, const FrontEndParams& params) {
+// must be exactly those of the stages run on every point's normal. (Without the gravity stage,
+// which only takes keypoints away: the stages below do not.)
+void expectFeaturesOfTheFullSurface(const Scene& scene, FrontEndParams params) {
+  params.gravity.enabled = false;
   const FrontEndResult result = extractFeatures(scene, params, /*apply_smoothing=*/true);
   const XyzCloud::Ptr points = params.smoothing.enabled ? smooth(*downsample(*scene.cloud, params.downsample), params.smoothing)
                                                         : downsample(*scene.cloud, params.downsample);
