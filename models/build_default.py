@@ -67,6 +67,8 @@ def main():
     ap.add_argument("--furniture-dir", default="/usr/share/sweethome3d/furniture")
     ap.add_argument("--work", default=os.path.join(HERE, "..", "build", "default-model-src"))
     ap.add_argument("--skip-training", action="store_true", help="only remake the sample scene")
+    ap.add_argument("--manifest-only", action="store_true",
+                    help="only extract the meshes and write WORK/manifest.tsv (no training, no sample scene, no credits)")
     args = ap.parse_args()
 
     os.makedirs(args.work, exist_ok=True)
@@ -89,6 +91,10 @@ def main():
             # Relative to the manifest, so the model's provenance names the catalog entry, not this machine.
             f.write("\t".join([m["category"], os.path.relpath(m["obj"], args.work), *(f"{v:.4f}" for v in m["size_m"]), "y",
                                m["rotation"], credit]) + "\n")
+
+    if args.manifest_only:
+        print(manifest)
+        return
 
     with open(os.path.join(HERE, "CREDITS.md"), "w") as f:
         f.write("# Credits of the meshes behind the shipped models and the sample scene\n\n"

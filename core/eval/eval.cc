@@ -51,11 +51,13 @@ std::vector<NamedStrategy> seedCombinations(const Model& model) {
   return out;
 }
 
-std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features,
-                                              const Strategy& strategy) {
+std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
+                                              const EvalRecognition& recognition) {
   RecognitionOptions options;
   options.strategy = strategy;
+  options.preset = recognition.preset;
   options.box_selection = false;  // the tables count peaks before selection too
+  options.min_confidence = 0;     // down to the lowest confidence recognition looks at
   return recognizeFeatures(model, features, options).hypotheses;
 }
 
@@ -93,7 +95,7 @@ int CountTable::at(const std::string& row, const std::string& col) const {
 }
 
 BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingScan>& test_scans,
-                                const std::vector<NamedStrategy>& strategies) {
+                                const std::vector<NamedStrategy>& strategies, const EvalRecognition& recognition) {
   BaselineResult result;
   for (const auto& c : model.categories) result.categories.push_back(c.name);
   result.test_scans = static_cast<int>(test_scans.size());
@@ -112,14 +114,18 @@ BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingSc
     for (size_t s = 0; s < strategies.size(); ++s) {
       BaselineCombination& combination = result.combinations[s];
       auto start = std::chrono::steady_clock::now();
-      auto hypotheses = hypothesesForFeatures(model, scan.features, strategies[s].strategy);
+      auto hypotheses = hypothesesForFeatures(model, scan.features, strategies[s].strategy, recognition);
       combination.recognition_ms += 1000.0 * secondsSince(start);
       std::vector<bool> generated(result.categories.size(), false);
       int best = static_cast<int>(result.categories.size());  // "none"
+      const bool seed = recognition.preset == RecognitionPreset::kSeed;
       for (const Hypothesis& h : hypotheses) {  // best first
-        const int col = indexOf(result.categories, h.category);
-        generated[col] = true;
-        if (h.passed_selection && best == static_cast<int>(result.categories.size())) best = col;
+        if (!seed && h.confidence < recognition.min_confidence) continue;
+        generated[static_cast<size_t>(indexOf(result.categories, h.category))] = true;
+        for (const auto& a : h.alternatives) {
+          if (a.confidence >= recognition.min_confidence) generated[static_cast<size_t>(indexOf(result.categories, a.category))] = true;
+        }
+        if (h.passed_selection && best == static_cast<int>(result.categories.size())) best = indexOf(result.categories, h.category);
       }
       for (size_t col = 0; col < generated.size(); ++col) combination.generated.counts[row][col] += generated[col];
       ++combination.confusion.counts[row][best];
@@ -133,7 +139,7 @@ BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingSc
   return result;
 }
 
-BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params) {
+BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params, const EvalRecognition& recognition) {
   auto start = std::chrono::steady_clock::now();
   std::vector<TrainingScan> training_scans = scanMeshes(split.train, params);
   std::vector<TrainingScan> test_scans = scanMeshes(split.test, params);
@@ -147,7 +153,7 @@ BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params)
   Model model = trainFromScans(training_scans, categories, params);
   const double train_seconds = secondsSince(start);
 
-  BaselineResult result = evaluateBaseline(model, test_scans, seedCombinations(model));
+  BaselineResult result = evaluateBaseline(model, test_scans, seedCombinations(model), recognition);
   result.training_scans = static_cast<int>(training_scans.size());
   result.scan_seconds = scan_seconds;
   result.train_seconds = train_seconds;

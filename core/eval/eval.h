@@ -30,11 +30,20 @@ std::string strategyName(const Strategy& strategy);
 // model's trained activation parameters; combinations whose codebook the model lacks are left out.
 std::vector<NamedStrategy> seedCombinations(const Model& model);
 
-// recognizeFeatures() with the model's thresholds for the strategy, keeping every peak above them
-// for every category (passed_selection says whether it passed the box test), best first.
+// How a recognition is evaluated: the preset, and where the default preset's operating point
+// is (the r, TP and FP columns count hypotheses at or above min_confidence; average precision
+// ranks every hypothesis down to the lowest confidence recognition looks at).
+struct EvalRecognition {
+  RecognitionPreset preset = RecognitionPreset::kDefault;
+  float min_confidence = 0.5f;
+};
+
+// recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above
+// them for every category (passed_selection says whether it passed the box test), best first.
+// Default preset: one answer per object down to the lowest confidence, most confident first.
 // Throws Error(kInvalidInput) when the model lacks the strategy's codebook or threshold.
-std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features,
-                                              const Strategy& strategy);
+std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
+                                              const EvalRecognition& recognition = {});
 
 // ---------------------------------------------------------------------------------------------
 // (a) Baseline on synthetic scans
@@ -79,13 +88,14 @@ struct BaselineResult {
 };
 
 // Evaluates `strategies` on test scans (one front end run per scan). Throws Error(kInvalidInput)
-// when a test scan's category is not one of the model's.
+// when a test scan's category is not one of the model's. A scan's category is "generated" by a
+// hypothesis of it or an alternative at or above the operating point.
 BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingScan>& test_scans,
-                                const std::vector<NamedStrategy>& strategies);
+                                const std::vector<NamedStrategy>& strategies, const EvalRecognition& recognition = {});
 
 // Scans train and test meshes, trains once from the training scans and evaluates the seed's
 // combinations.
-BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params);
+BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params, const EvalRecognition& recognition = {});
 
 // ---------------------------------------------------------------------------------------------
 // (b) Real scenes with ground truth (../shared/docs/DATASETS.md format)
@@ -191,9 +201,11 @@ class ClassScorer {
   // Hypotheses that failed box selection are ignored. Returns this scene's {TP, FP, FN} summed
   // over classes (the seed's rule); ground-truth objects of unmapped categories ("other") are
   // ignored. The boxes are compared in the gravity frame of `to_gravity` (scene -> gravity).
+  // Hypotheses below `min_confidence` count towards AP@0.25 only.
   std::array<int, 3> addScene(const std::vector<GroundTruthObject>& objects,
                               const std::vector<Hypothesis>& hypotheses,
-                              const Eigen::Matrix3f& to_gravity = Eigen::Matrix3f::Identity());
+                              const Eigen::Matrix3f& to_gravity = Eigen::Matrix3f::Identity(),
+                              float min_confidence = 0);
   std::vector<ClassScore> scores() const;
 
  private:
@@ -227,6 +239,7 @@ struct SceneRun {
 
 struct RealEvalParams {
   std::vector<NamedStrategy> strategies;
+  EvalRecognition recognition;
   CategoryMapping mapping = defaultCategoryMapping();
   ViewpointPolicy viewpoint = ViewpointPolicy::kAuto;
   float eye_height = 1.5f;

@@ -257,7 +257,7 @@ double averagePrecision(std::vector<std::pair<float, bool>> ranked, int objects)
   return ap;
 }
 
-float rankingScore(const Hypothesis& h) { return h.relativeScore(); }
+float rankingScore(const Hypothesis& h) { return h.confidence; }
 
 namespace {
 
@@ -293,7 +293,7 @@ ClassScorer::ClassScorer(const Model& model, const CategoryMapping& mapping) {
 
 std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& objects,
                                          const std::vector<Hypothesis>& hypotheses,
-                                         const Eigen::Matrix3f& to_gravity) {
+                                         const Eigen::Matrix3f& to_gravity, float min_confidence) {
   std::array<int, 3> scene{0, 0, 0};
   for (Class& c : classes_) {
     std::vector<Eigen::Vector3f> centres;
@@ -303,15 +303,16 @@ std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& o
       centres.push_back(o.center);
       boxes.push_back({to_gravity * o.center, o.size, o.yaw});
     }
-    std::vector<ScoredDetection> detections;
+    std::vector<ScoredDetection> detections, all;
     for (const Hypothesis& h : hypotheses) {
       if (!h.passed_selection || !contains(c.model_categories, h.category)) continue;
-      detections.push_back({rankingScore(h), h.support_centroid, radius_.at(h.category), uprightBoxOf(h.box, to_gravity)});
+      all.push_back({rankingScore(h), h.support_centroid, radius_.at(h.category), uprightBoxOf(h.box, to_gravity)});
+      if (h.confidence >= min_confidence) detections.push_back(all.back());
     }
-    const auto by_iou = matchDetectionsByIou(detections, boxes, 0.25f);
-    for (size_t d = 0; d < detections.size(); ++d) {
-      c.ranked25.emplace_back(detections[d].score, by_iou[d]);
-      (by_iou[d] ? c.tp25 : c.fp25) += 1;
+    const auto by_iou = matchDetectionsByIou(all, boxes, 0.25f);
+    for (size_t d = 0; d < all.size(); ++d) {
+      c.ranked25.emplace_back(all[d].score, by_iou[d]);
+      if (all[d].score >= min_confidence) (by_iou[d] ? c.tp25 : c.fp25) += 1;
     }
     c.scenes += 1;
     const auto labels = matchDetections(detections, centres);
@@ -370,6 +371,9 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     run.points = scene.cloud->size();
     run.viewpoint = sceneViewpoint(annotation, scene, params.viewpoint, params.eye_height);
     scene.sensor_origin = run.viewpoint;
+    // Gravity-levelled data says so, as a robot that knows its pose would; the others make the
+    // gravity stage find the floor.
+    if (annotation.up_is_given) scene.up = Eigen::Vector3f(annotation.to_gravity.row(2).transpose());
 
     start = std::chrono::steady_clock::now();
     FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled);
@@ -380,11 +384,13 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     double recognition_ms = 0;
     for (size_t s = 0; s < params.strategies.size(); ++s) {
       start = std::chrono::steady_clock::now();
-      auto hypotheses = hypothesesForFeatures(model, front.features, params.strategies[s].strategy);
+      auto hypotheses = hypothesesForFeatures(model, front.features, params.strategies[s].strategy, params.recognition);
       run.recognition_ms.push_back(millisecondsSince(start));
       recognition_ms += run.recognition_ms.back();
       result.combinations[s].scene_tp_fp_fn.push_back(
-          scorers[s].addScene(annotation.objects, hypotheses, annotation.to_gravity));
+          scorers[s].addScene(annotation.objects, hypotheses, annotation.to_gravity,
+                              params.recognition.preset == RecognitionPreset::kSeed ? 0.0f
+                                                                                    : params.recognition.min_confidence));
     }
     if (params.progress) {
       std::ostringstream line;

@@ -1,5 +1,8 @@
 #include "core/model/model.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "core/common/error.h"
 
 namespace ism {
@@ -16,6 +19,14 @@ const char* toString(VoteWeighting w) {
   }
   return "?";
 }
+
+float Calibration::confidence(float score, int support) const {
+  const double s = std::max(static_cast<double>(score), 1e-12);
+  const double logit = a * std::log(s) + c * std::log(s / std::max(support, 1)) + b;
+  return static_cast<float>(1.0 / (1.0 + std::exp(-logit)));
+}
+
+const char* toString(VoteFrame f) { return f == VoteFrame::kLrf ? "lrf" : "upright"; }
 
 CodebookType parseCodebookType(const std::string& s) {
   if (s == "global") return CodebookType::kGlobal;

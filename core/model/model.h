@@ -47,11 +47,43 @@ struct ThresholdKey {
   }
 };
 
+// The frame a keypoint's votes are stored and cast in.
+enum class VoteFrame {
+  // The SHOT local reference frame (the seed's). Fully rotation invariant, and as unstable as
+  // the LRF's axes: on flat or symmetric supports their signs are left to chance.
+  kLrf,
+  // Upright: z is up, x the keypoint's surface normal made horizontal, or where the surface is
+  // horizontal the direction into its support. Furniture stands upright, so only its heading is
+  // unknown, and votes keep their height exactly (Velizhev, Shapovalov and Schindler, "Implicit
+  // shape models for object detection in 3D point clouds", ISPRS 2012, vote in the ground plane
+  // for the same reason).
+  kUpright,
+};
+const char* toString(VoteFrame f);
+
+// How votes are cast; stored with the model because its vote tables were made that way.
+struct VotingParams {
+  VoteFrame frame = VoteFrame::kLrf;
+  // With the floor known, a keypoint casts only the votes of training keypoints whose height
+  // above the floor was within this of its own (m): furniture stands on the floor, so a part seen
+  // at 1.6 m is no chair's seat. 0 turns the test off.
+  float height_tolerance = 0;
+};
+
 // Votes stored under each codeword, CSR layout: votes of codeword i are
-// vectors[offsets[i] .. offsets[i+1]), each in the LRF of the keypoint that cast it.
+// vectors[offsets[i] .. offsets[i+1]), each in the frame (VotingParams::frame) of the keypoint
+// that cast it.
 struct VoteTable {
   std::vector<uint32_t> offsets;  // codebook size + 1 entries
   std::vector<Eigen::Vector3f> vectors;
+  // Per vote, the height above the floor of the training keypoint that cast it, ascending within
+  // each codeword; empty when the model was trained without heights.
+  std::vector<float> heights;
+  // Upright votes only, per vote: which training object cast it (an index into
+  // CategoryModel::objects) and that object's heading in the vote frame (rad), so that the votes
+  // a peak gathers also say how large the object is and which way it is turned.
+  std::vector<uint16_t> objects;
+  std::vector<float> headings;
   size_t occurrences(int codeword) const { return offsets[codeword + 1] - offsets[codeword]; }
   bool empty() const { return vectors.empty(); }
 };
@@ -71,6 +103,25 @@ struct ThresholdStats {
   float std = 0;
 };
 
+// One training mesh as placed: upright on the floor, its box along its own x (width), y (depth).
+struct TrainingObject {
+  Eigen::Vector3f size = Eigen::Vector3f::Zero();  // width, depth, height (m)
+  float center_height = 0;                          // of its box centre above the floor (m)
+};
+
+// A category's confidence for a peak of score s gathered from n supporting keypoints:
+// 1 / (1 + exp(-(a ln s + c ln(s / n) + b))), fitted to the peaks the model finds in synthetic
+// scenes of held-out training objects among clutter. s / n, the vote mass per supporting
+// keypoint, says how well the keypoints agree whatever their number: the same object seen from
+// farther, or by a sparser sensor, has fewer keypoints but agrees as well.
+struct Calibration {
+  float a = 0, b = 0, c = 0;
+  // Peaks below this score were not looked at when fitting: recognition does not look at them.
+  float min_score = 0;
+  int positives = 0, negatives = 0;  // the peaks it was fitted to
+  float confidence(float score, int support) const;
+};
+
 struct CategoryModel {
   std::string name;
   float bin_size = 0.1f;  // Hough bin edge (m)
@@ -82,6 +133,9 @@ struct CategoryModel {
   std::map<ThresholdKey, ThresholdStats> threshold_stats;  // behind `thresholds`; empty in older files
   int training_models = 0;
   int training_scans = 0;
+  // Per training model (TrainingScan::model_index); empty in files written before they were kept.
+  std::vector<TrainingObject> objects;
+  std::optional<Calibration> calibration;  // models trained before calibration have none
 };
 
 struct Provenance {
@@ -94,6 +148,7 @@ struct Provenance {
 
 struct Model {
   FrontEndParams front_end;
+  VotingParams voting;
   // Activation parameters the thresholds were computed with (kNN k and cutoff distance).
   ActivationParams trained_knn{ActivationStrategy::kKnn, 1, 0.25f};
   ActivationParams trained_cutoff{ActivationStrategy::kCutoff, 1, 0.25f};

@@ -2,6 +2,7 @@
 
 #include <zlib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <fstream>
@@ -39,6 +40,27 @@ void toProto(const VoteTable& table, v1::VoteTable* out) {
     v->Add(vec.y());
     v->Add(vec.z());
   }
+  out->mutable_heights()->Add(table.heights.begin(), table.heights.end());
+  out->mutable_objects()->Add(table.objects.begin(), table.objects.end());
+  out->mutable_headings()->Add(table.headings.begin(), table.headings.end());
+}
+
+void toProto(const GravityParams& g, v1::GravityParams* out) {
+  out->set_enabled(g.enabled);
+  out->set_max_tilt_deg(g.max_tilt_deg);
+  out->set_given_up_tolerance_deg(g.given_up_tolerance_deg);
+  out->set_inlier_distance(g.inlier_distance);
+  out->set_noise_sigmas(g.noise_sigmas);
+  out->set_min_floor_fraction(g.min_floor_fraction);
+  out->set_max_below_fraction(g.max_below_fraction);
+  out->set_below_margin(g.below_margin);
+  out->set_wall_min_height(g.wall_min_height);
+  out->set_wall_min_width(g.wall_min_width);
+  out->set_wall_tilt_deg(g.wall_tilt_deg);
+  out->set_max_walls(g.max_walls);
+  out->set_iterations(g.iterations);
+  out->set_sample_points(static_cast<uint32_t>(g.sample_points));
+  out->set_seed(g.seed);
 }
 
 void toProto(const ActivationParams& a, v1::ActivationParams* out) {
@@ -87,7 +109,7 @@ class Reader {
     return Codebook(std::move(centers));
   }
 
-  VoteTable votes(const v1::VoteTable& in, int codebook_size, const std::string& where) const {
+  VoteTable votes(const v1::VoteTable& in, int codebook_size, size_t objects, const std::string& where) const {
     VoteTable table;
     if (in.offsets_size() == 0 && in.vectors_size() == 0) return table;
     if (in.offsets_size() != codebook_size + 1) {
@@ -106,7 +128,89 @@ class Reader {
     for (size_t i = 0; i < table.vectors.size(); ++i) {
       table.vectors[i] = Eigen::Vector3f(in.vectors(3 * i), in.vectors(3 * i + 1), in.vectors(3 * i + 2));
     }
+    if (in.heights_size() > 0) {
+      if (static_cast<size_t>(in.heights_size()) != table.vectors.size()) {
+        fail(where + " has " + std::to_string(in.heights_size()) + " vote heights for " +
+             std::to_string(table.vectors.size()) + " votes");
+      }
+      table.heights.assign(in.heights().begin(), in.heights().end());
+      // Recognition finds a keypoint's votes by binary search over each codeword's heights.
+      for (size_t c = 0; c + 1 < table.offsets.size(); ++c) {
+        const auto first = table.heights.begin() + table.offsets[c], last = table.heights.begin() + table.offsets[c + 1];
+        if (!std::all_of(first, last, [](float h) { return std::isfinite(h); }) || !std::is_sorted(first, last)) {
+          fail(where + " vote heights of codeword " + std::to_string(c) + " are not finite and ascending");
+        }
+      }
+    }
+    if (in.objects_size() > 0 || in.headings_size() > 0) {
+      if (static_cast<size_t>(in.objects_size()) != table.vectors.size() ||
+          static_cast<size_t>(in.headings_size()) != table.vectors.size()) {
+        fail(where + " has " + std::to_string(in.objects_size()) + " vote objects and " +
+             std::to_string(in.headings_size()) + " headings for " + std::to_string(table.vectors.size()) + " votes");
+      }
+      for (uint32_t o : in.objects()) {
+        if (o >= objects) fail(where + " has a vote of training object " + std::to_string(o) + " of " + std::to_string(objects));
+      }
+      for (float h : in.headings()) {
+        if (!std::isfinite(h)) fail(where + " has a heading that is not finite");
+      }
+      table.objects.assign(in.objects().begin(), in.objects().end());
+      table.headings.assign(in.headings().begin(), in.headings().end());
+    }
     return table;
+  }
+
+  GravityParams gravity(const v1::FrontEndParams& fe) const {
+    GravityParams g;
+    if (!fe.has_gravity()) {
+      g.enabled = false;  // trained before the gravity stage existed
+      return g;
+    }
+    const v1::GravityParams& in = fe.gravity();
+    g.enabled = in.enabled();
+    g.max_tilt_deg = in.max_tilt_deg();
+    g.given_up_tolerance_deg = in.given_up_tolerance_deg();
+    g.inlier_distance = in.inlier_distance();
+    g.noise_sigmas = in.noise_sigmas();
+    g.min_floor_fraction = in.min_floor_fraction();
+    g.max_below_fraction = in.max_below_fraction();
+    g.below_margin = in.below_margin();
+    g.wall_min_height = in.wall_min_height();
+    g.wall_min_width = in.wall_min_width();
+    g.wall_tilt_deg = in.wall_tilt_deg();
+    g.max_walls = in.max_walls();
+    g.iterations = in.iterations();
+    g.sample_points = in.sample_points();
+    g.seed = in.seed();
+    const bool valid = g.max_tilt_deg >= 0 && g.max_tilt_deg <= 90 && g.given_up_tolerance_deg >= 0 &&
+                       g.given_up_tolerance_deg <= 90 && g.inlier_distance > 0 && std::isfinite(g.inlier_distance) &&
+                       g.noise_sigmas >= 0 && g.min_floor_fraction >= 0 && g.min_floor_fraction <= 1 &&
+                       g.max_below_fraction >= 0 && g.max_below_fraction <= 1 && g.below_margin >= 0 &&
+                       g.wall_min_height >= 0 && g.wall_min_width >= 0 && g.wall_tilt_deg >= 0 &&
+                       g.wall_tilt_deg <= 90 && g.max_walls >= 0 && g.max_walls <= 64 && g.iterations >= 1 &&
+                       g.iterations <= 100000 && g.sample_points >= 3 && g.sample_points <= 10000000;
+    if (g.enabled && !valid) fail("front-end gravity parameters are out of range");
+    return g;
+  }
+
+  VotingParams voting(const v1::ModelData& in) const {
+    VotingParams v;
+    switch (in.voting().frame()) {
+      case v1::VOTE_FRAME_UNSPECIFIED:
+      case v1::VOTE_FRAME_LRF:
+        v.frame = VoteFrame::kLrf;
+        break;
+      case v1::VOTE_FRAME_UPRIGHT:
+        v.frame = VoteFrame::kUpright;
+        break;
+      default:
+        fail("voting parameters have unknown vote frame " + std::to_string(in.voting().frame()));
+    }
+    v.height_tolerance = in.voting().height_tolerance();
+    if (!(v.height_tolerance >= 0 && std::isfinite(v.height_tolerance))) {
+      fail("voting height_tolerance " + std::to_string(v.height_tolerance) + " is not >= 0");
+    }
+    return v;
   }
 
   ActivationParams activation(const v1::ActivationParams& in, const std::string& where) const {
@@ -186,6 +290,11 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
   if (!(fe.leaf_size() > 0) || !(fe.normal_radius() > 0) || !(fe.boundary_radius() > 0) || !(fe.shot_radius() > 0)) {
     r.fail("front-end parameters have a non-positive radius or leaf size");
   }
+  m.front_end.gravity = r.gravity(fe);
+  m.voting = r.voting(in);
+  if (m.voting.frame == VoteFrame::kUpright && !m.front_end.gravity.enabled) {
+    r.fail("upright vote frames need the gravity stage, which the front-end parameters turn off");
+  }
   m.trained_knn = r.activation(in.trained_knn(), "trained_knn");
   m.trained_cutoff = r.activation(in.trained_cutoff(), "trained_cutoff");
   if (in.global_codebook().size() > 0) m.global_codebook = r.codebook(in.global_codebook(), "global codebook");
@@ -204,15 +313,22 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
     const auto& b = c.box();
     cat.box = {b.min_volume(), b.max_volume(), b.max_edge(), b.mean_volume(), b.std_volume(), b.mean_max_edge(),
                b.std_max_edge()};
+    for (const auto& o : c.objects()) {
+      const TrainingObject object{{o.width(), o.depth(), o.height()}, o.center_height()};
+      if (!(object.size.allFinite() && (object.size.array() > 0).all() && std::isfinite(object.center_height))) {
+        r.fail(where + " has a training object with a size that is not positive");
+      }
+      cat.objects.push_back(object);
+    }
     if (c.own_codebook().size() > 0) {
       cat.own_codebook = r.codebook(c.own_codebook(), where + " codebook");
       if (dim >= 0 && cat.own_codebook->dim() != dim) r.fail(where + " codebook dimension differs from the global one");
-      cat.own_votes = r.votes(c.own_votes(), cat.own_codebook->size(), where + " own votes");
+      cat.own_votes = r.votes(c.own_votes(), cat.own_codebook->size(), cat.objects.size(), where + " own votes");
     } else if (c.own_votes().vectors_size() > 0) {
       r.fail(where + " has separated votes but no separated codebook");
     }
     if (m.global_codebook) {
-      cat.global_votes = r.votes(c.global_votes(), m.global_codebook->size(), where + " global votes");
+      cat.global_votes = r.votes(c.global_votes(), m.global_codebook->size(), cat.objects.size(), where + " global votes");
     } else if (c.global_votes().vectors_size() > 0) {
       r.fail(where + " has global votes but the model has no global codebook");
     }
@@ -222,6 +338,14 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
                              r.weighting(t.weighting(), where + " threshold")};
       cat.thresholds[key] = t.value();
       if (t.has_mean() && t.has_std()) cat.threshold_stats[key] = {t.mean(), t.std()};
+    }
+    if (c.has_calibration()) {
+      const auto& k = c.calibration();
+      if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && k.min_score() >= 0 &&
+            std::isfinite(k.min_score()))) {
+        r.fail(where + " has a calibration that is not finite");
+      }
+      cat.calibration = Calibration{k.a(), k.b(), k.c(), k.min_score(), k.positives(), k.negatives()};
     }
     cat.training_models = c.training_models();
     cat.training_scans = c.training_scans();
@@ -266,6 +390,9 @@ std::string serializeModel(const Model& model) {
   fe->set_contour_relative_jump(model.front_end.keypoints.contour.relative_jump);
   fe->set_contour_max_gap(model.front_end.keypoints.contour.max_gap);
   fe->set_keypoint_min_spacing(model.front_end.keypoints.min_spacing);
+  toProto(model.front_end.gravity, fe->mutable_gravity());
+  data.mutable_voting()->set_frame(model.voting.frame == VoteFrame::kLrf ? v1::VOTE_FRAME_LRF : v1::VOTE_FRAME_UPRIGHT);
+  data.mutable_voting()->set_height_tolerance(model.voting.height_tolerance);
   toProto(model.trained_knn, data.mutable_trained_knn());
   toProto(model.trained_cutoff, data.mutable_trained_cutoff());
   if (model.global_codebook) toProto(*model.global_codebook, data.mutable_global_codebook());
@@ -295,6 +422,22 @@ std::string serializeModel(const Model& model) {
         t->set_mean(stats->second.mean);
         t->set_std(stats->second.std);
       }
+    }
+    for (const auto& o : c.objects) {
+      auto* object = out->add_objects();
+      object->set_width(o.size.x());
+      object->set_depth(o.size.y());
+      object->set_height(o.size.z());
+      object->set_center_height(o.center_height);
+    }
+    if (c.calibration) {
+      auto* calibration = out->mutable_calibration();
+      calibration->set_a(c.calibration->a);
+      calibration->set_b(c.calibration->b);
+      calibration->set_c(c.calibration->c);
+      calibration->set_min_score(c.calibration->min_score);
+      calibration->set_positives(c.calibration->positives);
+      calibration->set_negatives(c.calibration->negatives);
     }
     out->set_training_models(c.training_models);
     out->set_training_scans(c.training_scans);

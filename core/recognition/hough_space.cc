@@ -547,7 +547,10 @@ std::vector<Hypothesis> hypothesesAbove(float threshold, const CategoryModel& ca
     h.threshold = threshold;
     h.center = candidates[c].center;
     for (const auto& part : parts) {  // ranges in keypoint order: concatenated, still each once
-      for (int k : part.keypoints[c]) h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
+      for (int k : part.keypoints[c]) {
+        h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
+        h.support_indices.push_back(k);
+      }
     }
     h.support = static_cast<int>(h.support_keypoints.size());
     for (const auto& p : h.support_keypoints) h.support_centroid += p;
@@ -629,6 +632,8 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
 }
 
 HoughSpace::~HoughSpace() = default;
+
+const VoteCaster& HoughSpace::caster() const { return impl_->caster; }
 
 size_t HoughSpace::votes() const { return impl_->caster.votes(); }
 

@@ -10,6 +10,7 @@
 #include "core/common/types.h"
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
+#include "core/recognition/voting.h"
 
 namespace ism {
 
@@ -49,6 +50,7 @@ class HoughSpace {
   // in a bin a peak's cube meets. Each peak's box is fitted and checked (box_selection.h).
   std::vector<Hypothesis> findPeaks(float threshold) const;
 
+  const VoteCaster& caster() const;
   size_t votes() const;  // cast into the space
   size_t bins() const;   // occupied
   bool gridded() const;  // the bins are in a grid rather than a hash map

@@ -7,20 +7,36 @@
 
 namespace ism {
 
+// A category that lost to a hypothesis of another at the same place, and how sure it was.
+struct Alternative {
+  std::string category;
+  float confidence = 0;
+};
+
 struct Hypothesis {
   std::string category;
   float score = 0;       // summed vote weight around the centre
   float threshold = 0;   // the threshold the score was compared with
-  // How far above its category's threshold: what ranks hypotheses of different categories
-  // against each other, since raw scores are not comparable across categories (LW and AW
+  // How far above its category's threshold: what the seed's selection ranks hypotheses of
+  // different categories by, since raw scores are not comparable across categories (LW and AW
   // scores scale with 1/|Occ|, which differs per category's vote table).
   float relativeScore() const { return threshold > 0 ? score / threshold : score; }
+  // In [0, 1], the same scale for every category: the probability that an object of the category
+  // is there, from the category's calibration; without one, 1 - 2^-(score / threshold), which is
+  // 0.5 at the threshold.
+  float confidence = 0;
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // weighted mean of the votes in the peak
-  OrientedBox box;       // PCA box of the supporting keypoints
+  // Upright (z along the scene's up, bottom on the floor when there is one) from the training
+  // objects whose votes make the peak, when the model's votes are upright; else the PCA box of
+  // the supporting keypoints.
+  OrientedBox box;
+  bool upright_box = false;
   int support = 0;       // keypoints that voted into the peak
   Eigen::Vector3f support_centroid = Eigen::Vector3f::Zero();
   bool passed_selection = true;  // box volume within range and longest edge below the maximum
+  std::vector<Alternative> alternatives;  // best first
   std::vector<Eigen::Vector3f> support_keypoints;  // when asked for
+  std::vector<int> support_indices;  // the supporting keypoints as indices into the Features
 };
 
 }  // namespace ism

@@ -1,18 +1,50 @@
 #include "core/recognition/recognizer.h"
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <iterator>
 
 #include "core/common/error.h"
+#include "core/recognition/suppression.h"
+#include "core/recognition/upright_boxes.h"
 
 namespace ism {
+
+const char* toString(RecognitionPreset p) { return p == RecognitionPreset::kDefault ? "default" : "seed"; }
+
+RecognitionPreset parseRecognitionPreset(const std::string& s) {
+  if (s == "default") return RecognitionPreset::kDefault;
+  if (s == "seed") return RecognitionPreset::kSeed;
+  throw Error(ErrorCode::kInvalidInput, "unknown preset '" + s + "' (expected default or seed)");
+}
+
 namespace {
+
+// Peaks less likely than this are not looked at, whatever min_confidence asks.
+constexpr float kLowestConfidence = 0.01f;
+
+// A category's confidence for a peak: its calibration, or without one (models trained before
+// calibration) 1 - 2^-(score / threshold), 0.5 at the leave-one-out threshold.
+struct ConfidenceCurve {
+  std::optional<Calibration> calibration;
+  float threshold = 0;
+  float operator()(const Hypothesis& peak) const {
+    if (calibration) return calibration->confidence(peak.score, peak.support);
+    return threshold > 0 ? 1.0f - std::exp2(-peak.score / threshold) : 1.0f;
+  }
+  // The lowest score a peak of at least `confidence` can have: what the peak search starts from.
+  float lowestScore(float confidence) const {
+    if (calibration) return calibration->min_score;
+    return -threshold * std::log2(1.0f - confidence);
+  }
+};
 
 // The categories to search and their thresholds, checked before any work is done.
 struct Plan {
   std::vector<int> categories;  // indices into Model::categories
   std::vector<float> thresholds;
+  std::vector<ConfidenceCurve> confidence;
 };
 
 Plan planRecognition(const Model& model, const RecognitionOptions& options) {
@@ -34,20 +66,34 @@ Plan planRecognition(const Model& model, const RecognitionOptions& options) {
     throw Error(ErrorCode::kInvalidInput,
                 std::string("the model was trained without the ") + toString(strategy.codebook) + " codebook");
   }
+  if (!(options.min_confidence >= 0 && options.min_confidence <= 0.99f)) {
+    throw Error(ErrorCode::kInvalidInput,
+                "min_confidence " + std::to_string(options.min_confidence) + " is not in [0, 0.99]");
+  }
   for (int ci : plan.categories) {
     const CategoryModel& c = model.categories[static_cast<size_t>(ci)];
+    const auto it = c.thresholds.find({strategy.codebook, strategy.activation.strategy, strategy.weighting});
+    const bool calibrated = c.calibration && strategy.codebook == CodebookType::kGlobal &&
+                            strategy.activation.strategy == model.trained_knn.strategy &&
+                            strategy.activation.k == model.trained_knn.k &&
+                            strategy.weighting == VoteWeighting::kLocalization;
+    ConfidenceCurve curve;
+    if (calibrated) curve.calibration = c.calibration;
+    if (it != c.thresholds.end()) curve.threshold = it->second;
+    plan.confidence.push_back(curve);
     if (options.min_score) {
       plan.thresholds.push_back(*options.min_score);
       continue;
     }
-    const auto it = c.thresholds.find({strategy.codebook, strategy.activation.strategy, strategy.weighting});
     if (it == c.thresholds.end()) {
       throw Error(ErrorCode::kInvalidInput, "the model has no threshold for category '" + c.name + "' with " +
                                                 toString(strategy.codebook) + "/" +
                                                 toString(strategy.activation.strategy) + "/" +
                                                 toString(strategy.weighting) + "; pass a minimum score");
     }
-    plan.thresholds.push_back(it->second);
+    plan.thresholds.push_back(options.preset == RecognitionPreset::kSeed
+                                  ? it->second
+                                  : curve.lowestScore(std::max(options.min_confidence, kLowestConfidence)));
   }
   return plan;
 }
@@ -69,8 +115,24 @@ std::vector<std::vector<Activation>> activateCodewords(const Model& model, const
   return activations;
 }
 
+// Whether a peak's centre is at a height above the floor the category's training objects had
+// theirs, give or take the vote height test's tolerance and a bin.
+bool withinHeightPrior(const Hypothesis& peak, const CategoryModel& category, const Features& features,
+                       float tolerance) {
+  if (!features.gravity || !features.gravity->hasFloor() || category.objects.empty()) return true;
+  float lo = category.objects.front().center_height, hi = lo;
+  for (const auto& o : category.objects) {
+    lo = std::min(lo, o.center_height);
+    hi = std::max(hi, o.center_height);
+  }
+  const float h = features.gravity->height(peak.center), slack = tolerance + category.bin_size;
+  return h >= lo - slack && h <= hi + slack;
+}
+
 // Every planned category's peaks, one category's Hough space at a time: it is the bulk of the
-// memory on a room scan. With keep_votes the votes go to result.votes as well.
+// memory on a room scan. With keep_votes the votes go to result.votes as well. In the default
+// preset each peak gets its confidence and upright box, and peaks outside the category's height
+// prior go to result.rejected.
 std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const Features& features,
                                      const std::vector<std::vector<Activation>>& activations,
                                      const RecognitionOptions& options, RecognitionResult& result) {
@@ -89,7 +151,18 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
     throwIfStopped(options.should_stop, "voting");
     start = std::chrono::steady_clock::now();
     auto peaks = hough.findPeaks(plan.thresholds[s]);
-    std::move(peaks.begin(), peaks.end(), std::back_inserter(all));
+    const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
+    for (auto& peak : peaks) {
+      peak.confidence = plan.confidence[s](peak);
+      if (options.preset == RecognitionPreset::kSeed) {
+        all.push_back(std::move(peak));
+        continue;
+      }
+      if (peak.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
+      estimateUprightBox(hough.caster(), category.bin_size / 2, peak);
+      peak.passed_selection = withinHeightPrior(peak, category, features, model.voting.height_tolerance);
+      (peak.passed_selection ? all : result.rejected).push_back(std::move(peak));
+    }
     peak_ms += elapsed_ms(start);
     throwIfStopped(options.should_stop, "hypothesis search");
     if (options.keep_votes) {
@@ -102,16 +175,34 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
   return all;
 }
 
-// Ranks the hypotheses of every category against each other (Hypothesis::relativeScore) and
-// sorts them into result.hypotheses and result.rejected by their box test.
-void selectHypotheses(std::vector<Hypothesis> all, const RecognitionOptions& options, RecognitionResult& result) {
+// The seed's preset ranks the hypotheses of every category against each other by
+// Hypothesis::relativeScore and sorts them into result.hypotheses and result.rejected by their
+// box test. The default preset keeps one answer per object and the confident ones, best first.
+void selectHypotheses(std::vector<Hypothesis> all, const Features& features, const RecognitionOptions& options,
+                      RecognitionResult& result) {
   ScopedStage stage(&result.timings, "select");
-  std::stable_sort(all.begin(), all.end(),
-                   [](const Hypothesis& a, const Hypothesis& b) { return a.relativeScore() > b.relativeScore(); });
+  if (options.preset == RecognitionPreset::kSeed) {
+    std::stable_sort(all.begin(), all.end(),
+                     [](const Hypothesis& a, const Hypothesis& b) { return a.relativeScore() > b.relativeScore(); });
+  } else {
+    const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
+    if (options.one_answer_per_object) {
+      all = suppressOverlaps(std::move(all), to_gravity);
+    } else {
+      std::stable_sort(all.begin(), all.end(),
+                       [](const Hypothesis& a, const Hypothesis& b) { return a.confidence > b.confidence; });
+    }
+    all.erase(std::remove_if(all.begin(), all.end(),
+                             [&](const Hypothesis& h) { return h.confidence < options.min_confidence; }),
+              all.end());
+  }
+  for (auto& rejected : result.rejected) {
+    if (!options.return_keypoints) rejected.support_keypoints = {};
+  }
   for (auto& h : all) {
     if (!options.return_keypoints) h.support_keypoints = {};
-    auto& target = (h.passed_selection || !options.box_selection) ? result.hypotheses : result.rejected;
-    target.push_back(std::move(h));
+    const bool selected = options.preset == RecognitionPreset::kDefault || h.passed_selection || !options.box_selection;
+    (selected ? result.hypotheses : result.rejected).push_back(std::move(h));
   }
   if (options.max_hypotheses > 0 && result.hypotheses.size() > static_cast<size_t>(options.max_hypotheses)) {
     result.hypotheses.resize(static_cast<size_t>(options.max_hypotheses));
@@ -123,7 +214,8 @@ void recognizePlanned(const Model& model, const Plan& plan, const Features& feat
   result.keypoints = features.size();
   throwIfStopped(options.should_stop, "codeword activation");
   const auto activations = activateCodewords(model, plan, features, options, result.timings);
-  selectHypotheses(findAllPeaks(model, plan, features, activations, options, result), options, result);
+  result.gravity = features.gravity;
+  selectHypotheses(findAllPeaks(model, plan, features, activations, options, result), features, options, result);
   if (options.keep_votes) result.keypoint_positions = features.positions;
 }
 

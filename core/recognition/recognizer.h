@@ -1,8 +1,11 @@
 #pragma once
 // Recognition: features -> codeword activations -> weighted votes in a 3D Hough space per
-// category -> every local maximum above the threshold -> box selection -> hypotheses.
-// The stages live in their own files: voting.h (the votes), hough_space.h (bins and peaks),
-// box_selection.h (the learned box limits); this file plans a call and chains them.
+// category -> every local maximum above the category's threshold -> a confidence, an upright box
+// and the category's priors per peak -> one answer per object -> hypotheses. The seed's preset
+// ends with its box selection instead. The stages live in their own files: voting.h (the votes),
+// hough_space.h (bins and peaks), upright_boxes.h (boxes from the training objects),
+// suppression.h (one answer per object), box_selection.h (the seed's learned box limits); this
+// file plans a call and chains them.
 #include <cstddef>
 #include <optional>
 #include <string>
@@ -18,13 +21,32 @@
 
 namespace ism {
 
+enum class RecognitionPreset {
+  // Confidence from the category's calibration, upright boxes and priors from the training
+  // objects, one answer per object.
+  kDefault,
+  // The seed's: every peak above the leave-one-out threshold that passes the box selection,
+  // ranked by score over threshold.
+  kSeed,
+};
+const char* toString(RecognitionPreset p);
+RecognitionPreset parseRecognitionPreset(const std::string& s);  // "default" or "seed"
+
 struct RecognitionOptions {
   Strategy strategy;                    // codebook type, activation, weighting: per call
+  RecognitionPreset preset = RecognitionPreset::kDefault;
   std::vector<std::string> categories;  // empty = every category of the model
-  // Overrides the model's leave-one-out threshold for the chosen strategy when set.
+  // Default preset: hypotheses below this confidence are dropped. At most 0.99; below 0.01 it
+  // is 0.01, since peaks less likely than that are not looked at.
+  float min_confidence = 0.5f;
+  // Overrides the score every peak must exceed when set: the model's leave-one-out threshold for
+  // the strategy (seed preset) or the score of min_confidence (default preset).
   std::optional<float> min_score;
-  int max_hypotheses = 0;               // 0 = no limit; best first (Hypothesis::relativeScore)
-  bool box_selection = true;            // false: keep hypotheses that fail the box test too
+  int max_hypotheses = 0;               // 0 = no limit; best first
+  // Default preset: merge and compete overlapping hypotheses (suppression.h); false keeps every
+  // peak above the threshold (calibration labels them one by one).
+  bool one_answer_per_object = true;
+  bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)
   ShouldStop should_stop;               // polled between stages and in long loops
@@ -32,7 +54,9 @@ struct RecognitionOptions {
 
 struct RecognitionResult {
   std::vector<Hypothesis> hypotheses;  // passed selection, best first
-  std::vector<Hypothesis> rejected;    // above threshold but failed box selection
+  // Above threshold but failed the box selection (seed preset) or the category's priors (default)
+  std::vector<Hypothesis> rejected;
+  std::optional<Gravity> gravity;      // up and the floor, when the front end found them
   StageTimings timings;
   size_t input_points = 0;
   size_t surface_points = 0;

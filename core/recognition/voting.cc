@@ -1,5 +1,6 @@
 #include "core/recognition/voting.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -13,7 +14,43 @@ const VoteTable& votesOf(const CategoryModel& category, CodebookType type) {
   return type == CodebookType::kGlobal ? category.global_votes : category.own_votes;
 }
 
+Eigen::Vector3f horizontal(const Eigen::Vector3f& v, const Eigen::Vector3f& up) { return v - up * up.dot(v); }
+
 }  // namespace
+
+Eigen::Matrix3f voteFrame(const Features& features, size_t k, VoteFrame frame) {
+  if (frame == VoteFrame::kLrf) return features.lrfs[k];
+  if (!features.gravity || features.normals.size() != features.size() ||
+      features.support_directions.size() != features.size()) {
+    throw Error(ErrorCode::kInvalidInput, "upright vote frames need the features' up, normals and support directions "
+                                          "(the front end's gravity stage)");
+  }
+  const Eigen::Vector3f& up = features.gravity->up;
+  // A surface within 60 degrees of vertical faces its way; a flatter one is read from the side
+  // its support lies on (a seat's or a table top's edge points into the object).
+  constexpr float kSteepEnough = 0.5f;
+  Eigen::Vector3f x = horizontal(features.normals[k], up);
+  if (x.norm() < kSteepEnough) {
+    const Eigen::Vector3f& into = features.support_directions[k];
+    const Eigen::Vector3f flat = horizontal(into, up);
+    if (flat.norm() > 0.25f * into.norm() && flat.norm() > 1e-4f) x = -flat;
+  }
+  if (!(x.norm() > 1e-4f)) x = horizontal(features.lrfs[k].row(0).transpose(), up);
+  if (!(x.norm() > 1e-6f)) x = horizontal(features.lrfs[k].row(1).transpose(), up);
+  x.normalize();
+  Eigen::Matrix3f r;
+  r.row(0) = x.transpose();
+  r.row(1) = up.cross(x).transpose();
+  r.row(2) = up.transpose();
+  return r;
+}
+
+std::vector<Eigen::Matrix3f> voteFrames(const Features& features, VoteFrame frame) {
+  if (frame == VoteFrame::kLrf) return features.lrfs;
+  std::vector<Eigen::Matrix3f> frames(features.size());
+  for (size_t k = 0; k < features.size(); ++k) frames[k] = voteFrame(features, k, frame);
+  return frames;
+}
 
 VoteCaster::VoteCaster(const Model& model, int category_index, const Features& features,
                        const std::vector<Activation>& activations, const Strategy& strategy)
@@ -24,7 +61,21 @@ VoteCaster::VoteCaster(const Model& model, int category_index, const Features& f
       offsets_(features.size() + 1, 0),
       vote_offsets_(features.size() + 1, 0) {
   if (table_.empty()) return;
+  frames_ = voteFrames(features, model.voting.frame);
   const int codewords = static_cast<int>(table_.offsets.size()) - 1;
+  const float tolerance = model.voting.height_tolerance;
+  const bool by_height = tolerance > 0 && !table_.heights.empty() && features.heights.size() == features.size();
+  const auto rowsOf = [&](const Activation& a) {
+    uint32_t first = table_.offsets[static_cast<size_t>(a.codeword)];
+    uint32_t last = table_.offsets[static_cast<size_t>(a.codeword) + 1];
+    if (by_height && first < last) {
+      const float h = features.heights[static_cast<size_t>(a.keypoint)];
+      const float* heights = table_.heights.data();
+      first = static_cast<uint32_t>(std::lower_bound(heights + first, heights + last, h - tolerance) - heights);
+      last = std::max(first, static_cast<uint32_t>(std::upper_bound(heights + first, heights + last, h + tolerance) - heights));
+    }
+    return std::pair<uint32_t, uint32_t>(first, last);
+  };
   for (const auto& a : activations) {
     if (a.keypoint < 0 || static_cast<size_t>(a.keypoint) >= features.size() || a.codeword < 0 ||
         a.codeword >= codewords) {
@@ -35,14 +86,20 @@ VoteCaster::VoteCaster(const Model& model, int category_index, const Features& f
                                                 category_.name + "'");
     }
     ++offsets_[static_cast<size_t>(a.keypoint) + 1];
-    votes_ += table_.occurrences(a.codeword);
   }
   for (size_t k = 0; k < features.size(); ++k) offsets_[k + 1] += offsets_[k];
-  for (const auto& a : activations) vote_offsets_[static_cast<size_t>(a.keypoint) + 1] += table_.occurrences(a.codeword);
-  for (size_t k = 0; k < features.size(); ++k) vote_offsets_[k + 1] += vote_offsets_[k];
   by_keypoint_.resize(activations.size());
+  rows_.resize(activations.size());
   std::vector<uint32_t> cursor(offsets_.begin(), offsets_.end() - 1);
-  for (const auto& a : activations) by_keypoint_[cursor[static_cast<size_t>(a.keypoint)]++] = a;
+  for (const auto& a : activations) {
+    const uint32_t at = cursor[static_cast<size_t>(a.keypoint)]++;
+    by_keypoint_[at] = a;
+    rows_[at] = rowsOf(a);
+    const uint32_t cast = rows_[at].second - rows_[at].first;
+    votes_ += cast;
+    vote_offsets_[static_cast<size_t>(a.keypoint) + 1] += cast;
+  }
+  for (size_t k = 0; k < features.size(); ++k) vote_offsets_[k + 1] += vote_offsets_[k];
   // The activated codewords' votes de-interleaved (the rotation then runs four votes at a time),
   // and the longest of each.
   const size_t stored = table_.vectors.size();
@@ -79,7 +136,7 @@ bool VoteCaster::voteBounds(Eigen::Vector3f& lo, Eigen::Vector3f& hi) const {
       if (table_.occurrences(codeword) > 0) reach = std::max(reach, longest_[static_cast<size_t>(codeword)]);
     }
     if (reach < 0) continue;  // no votes
-    const Eigen::Vector3f extent = features_.lrfs[k].colwise().norm().transpose() * reach;
+    const Eigen::Vector3f extent = frames_[k].colwise().norm().transpose() * reach;
     const Eigen::Vector3f& o = features_.positions[k];
     if (!(o - extent).allFinite() || !(o + extent).allFinite()) return false;
     lo = lo.cwiseMin(o - extent);

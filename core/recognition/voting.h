@@ -21,6 +21,14 @@ struct Vote {
   int category;              // index into Model::categories
 };
 
+// The frame keypoint k of `features` stores and casts its votes in (rows x, y, z in scene
+// coordinates): its LRF, or for VoteFrame::kUpright z = up and x = the horizontal part of its
+// surface normal or, where that is nearly vertical, of the direction into its support (the SHOT
+// x axis as a last resort). Throws Error(kInvalidInput) for kUpright without the gravity stage's
+// output in `features`.
+Eigen::Matrix3f voteFrame(const Features& features, size_t k, VoteFrame frame);
+std::vector<Eigen::Matrix3f> voteFrames(const Features& features, VoteFrame frame);
+
 // Votes of one category's ISM for already extracted features, materialised (debug output,
 // leave-one-out scores); recognition itself accumulates them into a HoughSpace instead.
 // Throws Error(kInvalidInput) for an activation outside the features or the vote table.
@@ -59,6 +67,8 @@ class VoteCaster {
              const std::vector<Activation>& activations, const Strategy& strategy);
 
   const CategoryModel& category() const { return category_; }
+  const VoteTable& table() const { return table_; }
+  const Eigen::Matrix3f& frame(size_t k) const { return frames_[k]; }
   const Features& features() const { return features_; }
   size_t keypoints() const { return features_.size(); }
   size_t votes() const { return votes_; }
@@ -72,19 +82,21 @@ class VoteCaster {
   size_t firstVote(size_t k) const { return vote_offsets_[k]; }
 
   // Calls f(weight, first, last) for each of keypoint k's activations with votes, in order: its
-  // votes are those of table_ rows [first, last), each with that weight.
+  // votes are those of table_ rows [first, last), each with that weight. With the height test
+  // (VotingParams::height_tolerance) the rows are those of training keypoints at about k's
+  // height; the weights still spread over all of the codeword's votes, so the votes a height
+  // rules out are lost mass rather than mass moved to the others.
   template <typename F>
   void forEachActivation(size_t k, F&& f) const {
     const uint32_t begin = offsets_[k], end = offsets_[k + 1];
     const float activated = static_cast<float>(end - begin);
     for (uint32_t i = begin; i < end; ++i) {
       const Activation& a = by_keypoint_[i];
-      const uint32_t first = table_.offsets[static_cast<size_t>(a.codeword)];
-      const uint32_t last = table_.offsets[static_cast<size_t>(a.codeword) + 1];
+      const auto [first, last] = rows_[i];
       if (first == last) continue;
       float weight = 1.0f;
       if (weighting_ != VoteWeighting::kCategorization) {
-        weight = 1.0f / (activated * static_cast<float>(last - first));
+        weight = 1.0f / (activated * static_cast<float>(table_.occurrences(a.codeword)));
         if (weighting_ == VoteWeighting::kActivation) weight *= 1.0f - a.distance / 2.0f;
       }
       f(weight, first, last);
@@ -94,7 +106,7 @@ class VoteCaster {
   // Calls f(chunk) for the votes of keypoint k, chunk by chunk.
   template <typename F>
   void forEachChunk(size_t k, VoteChunk& chunk, F&& f) const {
-    const Eigen::Matrix3f& r = features_.lrfs[k];  // scene -> LRF; votes go back with its transpose
+    const Eigen::Matrix3f& r = frames_[k];  // scene -> vote frame; votes go back with its transpose
     const Eigen::Vector3f& o = features_.positions[k];
     forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
       chunk.weight = weight;
@@ -112,7 +124,7 @@ class VoteCaster {
 
   // Where vote v (a row of table_) of keypoint k lands: the same floats forEachChunk gives it.
   Eigen::Vector3f position(size_t k, uint32_t v) const {
-    const Eigen::Matrix3f& r = features_.lrfs[k];
+    const Eigen::Matrix3f& r = frames_[k];
     const Eigen::Vector3f& o = features_.positions[k];
     return {cast(o.x(), r(0, 0), r(1, 0), r(2, 0), vx_[v], vy_[v], vz_[v]),
             cast(o.y(), r(0, 1), r(1, 1), r(2, 1), vx_[v], vy_[v], vz_[v]),
@@ -132,6 +144,8 @@ class VoteCaster {
   std::vector<uint32_t> offsets_;  // activations of keypoint k: by_keypoint_[offsets_[k] .. offsets_[k+1])
   std::vector<size_t> vote_offsets_;  // votes of keypoint k: [vote_offsets_[k], vote_offsets_[k+1])
   std::vector<Activation> by_keypoint_;
+  std::vector<std::pair<uint32_t, uint32_t>> rows_;  // per by_keypoint_ entry: its table_ rows
+  std::vector<Eigen::Matrix3f> frames_;              // per keypoint: voteFrame()
   size_t votes_ = 0;
   // The vectors of table_ by coordinate, filled for the activated codewords only.
   std::unique_ptr<float[]> vx_, vy_, vz_;

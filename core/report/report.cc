@@ -62,14 +62,18 @@ struct Canvas {
 std::string hypothesesTable(const RecognitionResult& result, bool include_rejected) {
   std::string out;
   char line[256];
-  std::snprintf(line, sizeof line, "%-16s %8s %9s %24s %18s %7s%s\n", "category", "score", "threshold",
-                "centre (m)", "box (m)", "support", include_rejected ? "  selection" : "");
+  std::snprintf(line, sizeof line, "%-16s %10s %8s %9s %24s %18s %7s%s\n", "category", "confidence", "score",
+                "threshold", "centre (m)", "box (m)", "support", include_rejected ? "  selection" : "");
   out += line;
   const auto add = [&](const Hypothesis& h, const char* selection) {
-    std::snprintf(line, sizeof line, "%-16s %8.3f %9.3f %7.2f %7.2f %7.2f   %5.2f %5.2f %5.2f %7d%s%s\n",
-                  h.category.c_str(), h.score, h.threshold, h.center.x(), h.center.y(), h.center.z(), h.box.size.x(),
-                  h.box.size.y(), h.box.size.z(), h.support, include_rejected ? "  " : "", selection);
+    std::snprintf(line, sizeof line, "%-16s %10.3f %8.3f %9.3f %7.2f %7.2f %7.2f   %5.2f %5.2f %5.2f %7d%s%s\n",
+                  h.category.c_str(), h.confidence, h.score, h.threshold, h.center.x(), h.center.y(), h.center.z(),
+                  h.box.size.x(), h.box.size.y(), h.box.size.z(), h.support, include_rejected ? "  " : "", selection);
     out += line;
+    for (const auto& a : h.alternatives) {
+      std::snprintf(line, sizeof line, "  or %-12s %10.3f\n", a.category.c_str(), a.confidence);
+      out += line;
+    }
   };
   for (const auto& h : result.hypotheses) add(h, include_rejected ? (h.passed_selection ? "passed" : "failed") : "");
   if (include_rejected) {
@@ -80,7 +84,11 @@ std::string hypothesesTable(const RecognitionResult& result, bool include_reject
 }
 
 nlohmann::json toJson(const Hypothesis& h) {
+  nlohmann::json alternatives = nlohmann::json::array();
+  for (const auto& a : h.alternatives) alternatives.push_back({{"category", a.category}, {"confidence", a.confidence}});
   nlohmann::json j = {{"category", h.category},
+                      {"confidence", h.confidence},
+                      {"alternatives", alternatives},
                       {"score", h.score},
                       {"threshold", h.threshold},
                       {"center", toJson(h.center)},
@@ -90,6 +98,7 @@ nlohmann::json toJson(const Hypothesis& h) {
                         {"rotation_wxyz", {h.box.rotation.w(), h.box.rotation.x(), h.box.rotation.y(), h.box.rotation.z()}}}},
                       {"support", h.support},
                       {"support_centroid", toJson(h.support_centroid)},
+                      {"upright_box", h.upright_box},
                       {"passed_selection", h.passed_selection}};
   if (!h.support_keypoints.empty()) {
     auto& points = j["support_keypoints"] = nlohmann::json::array();
@@ -108,6 +117,12 @@ nlohmann::json toJson(const RecognitionResult& result) {
   for (const auto& h : result.hypotheses) j["hypotheses"].push_back(toJson(h));
   for (const auto& h : result.rejected) j["rejected"].push_back(toJson(h));
   for (const auto& [stage, ms] : result.timings.stages) j["timings_ms"].push_back({{"stage", stage}, {"ms", ms}});
+  if (result.gravity) {
+    const Gravity& g = *result.gravity;
+    j["gravity"] = {{"up", toJson(g.up)}, {"source", toString(g.source)}, {"floor_points", g.floor_points},
+                    {"walls", g.walls}};
+    if (g.hasFloor()) j["gravity"]["floor_level"] = *g.floor_level;
+  }
   return j;
 }
 

@@ -151,15 +151,15 @@ DepthImage render(const std::vector<const Mesh*>& meshes, const Eigen::Isometry3
   return image;
 }
 
-Mesh floorQuad(float size) {
+}  // namespace
+
+Mesh floorMesh(float size) {
   const float h = size / 2;
   Mesh floor;
   floor.vertices = {{-h, -h, 0}, {h, -h, 0}, {h, h, 0}, {-h, h, 0}};
   floor.triangles = {{0, 1, 2}, {0, 2, 3}};
   return floor;
 }
-
-}  // namespace
 
 Eigen::Isometry3f lookAt(const Eigen::Vector3f& eye, const Eigen::Vector3f& target) {
   Eigen::Vector3f forward = target - eye;
@@ -279,7 +279,7 @@ SyntheticScene composeScene(const std::vector<SceneObject>& objects, const Synth
     truth.yaw = object.yaw;
     result.objects.push_back(truth);
   }
-  if (params.floor_size > 0) world_meshes.push_back(floorQuad(params.floor_size));
+  if (params.floor_size > 0) world_meshes.push_back(floorMesh(params.floor_size));
   std::vector<const Mesh*> meshes;
   for (const Mesh& mesh : world_meshes) meshes.push_back(&mesh);
 

@@ -86,6 +86,9 @@ struct SyntheticScene {
   std::vector<int> point_object;
 };
 
+// A square floor of `size` metres on z = 0, centred at the origin, facing up.
+Mesh floorMesh(float size);
+
 SyntheticScene composeScene(const std::vector<SceneObject>& objects, const SyntheticSceneParams& params);
 
 }  // namespace ism

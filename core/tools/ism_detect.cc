@@ -1,5 +1,6 @@
 // ism-detect: recognise furniture in point clouds (PCD/PLY) or depth PNGs with a trained model.
 #include <CLI/CLI.hpp>
+#include <optional>
 #include <algorithm>
 #include <cstdio>
 #include <iostream>
@@ -28,6 +29,7 @@ int main(int argc, char** argv) {
   ism::RecognitionOptions options;
   float min_score = 0;
   bool json = false, no_box_selection = false;
+  std::string preset = "default", up;
   app.add_option("-m,--model", model_path, "trained model file")->required();
   app.add_option("files", files, "scenes: .pcd, .ply, or 16-bit depth .png")->required();
   app.add_option("--fx", intrinsics.fx, "depth PNG focal length x (px)");
@@ -42,6 +44,13 @@ int main(int argc, char** argv) {
   app.add_option("--weighting", weighting, "vote weights: cw, lw or aw")->check(CLI::IsMember({"cw", "lw", "aw"}));
   app.add_option("--categories", categories, "comma-separated categories (default: all)");
   auto* min_score_opt = app.add_option("--min-score", min_score, "score threshold instead of the model's");
+  app.add_option("--preset", preset, "default (confidence, upright boxes, one answer per object) or seed")
+      ->check(CLI::IsMember({"default", "seed"}))
+      ->capture_default_str();
+  app.add_option("--min-confidence", options.min_confidence, "default preset: drop hypotheses below this")
+      ->check(CLI::Range(0.0f, 0.99f))
+      ->capture_default_str();
+  app.add_option("--up", up, "the scene's up direction, X,Y,Z in its coordinates, when known (else the floor is found)");
   app.add_option("--max", options.max_hypotheses, "at most N hypotheses (0 = all)")->check(CLI::NonNegativeNumber);
   app.add_flag("--json", json, "print JSON instead of a table");
   app.add_option("--picture", picture, "write the scene with the boxes drawn as PNG (one input only)");
@@ -67,13 +76,26 @@ int main(int argc, char** argv) {
       if (!c.empty()) options.categories.push_back(c);
     }
     if (*min_score_opt) options.min_score = min_score;
+    options.preset = ism::parseRecognitionPreset(preset);
+    std::optional<Eigen::Vector3f> given_up;
+    if (!up.empty()) {
+      std::stringstream text(up);
+      Eigen::Vector3f v;
+      char comma1 = 0, comma2 = 0;
+      if (!(text >> v.x() >> comma1 >> v.y() >> comma2 >> v.z()) || comma1 != ',' || comma2 != ',' || !v.allFinite() ||
+          !(v.norm() > 0)) {
+        throw ism::Error(ism::ErrorCode::kInvalidInput, "--up '" + up + "' is not three numbers X,Y,Z of a non-zero vector");
+      }
+      given_up = v;
+    }
     options.box_selection = !no_box_selection;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 
     nlohmann::json all = nlohmann::json::array();
     for (const auto& file : files) {
-      const ism::Scene scene = isPng(file) ? ism::loadDepthPng(file, intrinsics) : ism::loadCloudFile(file);
+      ism::Scene scene = isPng(file) ? ism::loadDepthPng(file, intrinsics) : ism::loadCloudFile(file);
+      scene.up = given_up;
       const ism::RecognitionResult result = ism::recognize(model, scene, options);
       if (json) {
         nlohmann::json j = ism::toJson(result);

@@ -35,7 +35,11 @@ int main(int argc, char** argv) {
                                                       "test on scans of M others, all six seed combinations");
   std::string manifest, folders, train_list, test_list;
   int train_per_category = 3, test_per_category = 2;
-  ism::TrainingParams training;
+  // The preset is the base the training options change, so it is read before them.
+  bool seed_preset = false;
+  for (int i = 1; i + 1 < argc; ++i) seed_preset |= std::string(argv[i]) == "--preset" && std::string(argv[i + 1]) == "seed";
+  for (int i = 1; i < argc; ++i) seed_preset |= std::string(argv[i]) == "--preset=seed";
+  ism::TrainingParams training = seed_preset ? ism::seedTrainingParams() : ism::TrainingParams{};
   training.command = "ism-eval baseline";
   auto* manifest_opt = baseline->add_option("--manifest", manifest, "TSV: category path [width depth height up ...]")
                            ->check(CLI::ExistingFile);
@@ -82,6 +86,17 @@ int main(int argc, char** argv) {
   real->add_option("--eye-height", eye_height, "room-centre viewpoint height above the floor (m)")
       ->capture_default_str();
   real->add_option("--json", json_path, "also write the results as JSON");
+  std::string preset = "default";
+  float min_confidence = 0.5f;
+  for (CLI::App* sub : {baseline, real}) {
+    sub->add_option("--preset", preset, "default | seed: the recognition pipeline evaluated")
+        ->check(CLI::IsMember({"default", "seed"}))
+        ->capture_default_str();
+    sub->add_option("--min-confidence", min_confidence,
+                    "default preset: the operating point r, TP and FP are counted at (AP ranks everything)")
+        ->check(CLI::Range(0.0f, 0.99f))
+        ->capture_default_str();
+  }
   std::string pr_curve;
   real->add_option("--pr-curve", pr_curve,
                    "write the precision-recall curves (3D IoU 0.25) as PNG; with several combinations, "
@@ -103,11 +118,12 @@ int main(int argc, char** argv) {
         split = ism::splitMeshes(meshes, train_per_category, test_per_category);
       }
       training.progress = progress;
-      auto result = ism::runBaseline(split, training);
+      auto result = ism::runBaseline(split, training, {ism::parseRecognitionPreset(preset), min_confidence});
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
     } else {
       ism::RealEvalParams params;
+      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

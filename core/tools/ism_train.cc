@@ -6,10 +6,30 @@
 #include "core/model/model_file.h"
 #include "core/training/trainer.h"
 
+namespace {
+
+// The preset is the base the other options change, so it is read before them.
+std::string presetOf(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string arg = argv[i];
+    if (arg == "--preset" && i + 1 < argc) return argv[i + 1];
+    if (arg.rfind("--preset=", 0) == 0) return arg.substr(9);
+  }
+  return "default";
+}
+
+}  // namespace
+
 int main(int argc, char** argv) {
   CLI::App app{"Train furniture Implicit Shape Models from CAD meshes rendered as virtual Kinect scans."};
   std::string folders, manifest, output, codebook = "both";
-  ism::TrainingParams params;
+  std::string preset = presetOf(argc, argv);
+  ism::TrainingParams params = preset == "seed" ? ism::seedTrainingParams() : ism::TrainingParams{};
+  app.add_option("--preset", preset,
+                 "default: the project's pipeline (gravity, upright votes, floors in the scans); seed: the thesis' "
+                 "pipeline as ../shared/docs/ALGORITHM.md describes it")
+      ->check(CLI::IsMember({"default", "seed"}))
+      ->capture_default_str();
   std::vector<std::string> bins;
   auto* folders_opt = app.add_option("--folders", folders, "ROOT with one folder of meshes per category");
   auto* manifest_opt = app.add_option("--manifest", manifest, "TSV: category path [width_m depth_m height_m up rotation credit]");
@@ -21,6 +41,19 @@ int main(int argc, char** argv) {
   app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
+  // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.
+  bool no_gravity = false, no_training_floor = false, no_calibration = false;
+  std::string vote_frame;
+  app.add_flag("--no-gravity", no_gravity, "no up, floor or walls: keypoints anywhere, votes in the LRF, no heights");
+  app.add_option("--vote-frame", vote_frame, "lrf (the seed's) or upright (the default)")
+      ->check(CLI::IsMember({"lrf", "upright"}));
+  app.add_option("--height-tolerance", params.voting.height_tolerance,
+                 "cast only the votes of training keypoints within this height of the keypoint's (m); 0 = off")
+      ->check(CLI::NonNegativeNumber);
+  app.add_flag("--no-training-floor", no_training_floor, "render the training meshes without a floor");
+  app.add_flag("--no-calibration", no_calibration, "no confidence calibration on rendered rooms");
+  app.add_option("--calibration-rooms", params.calibration.rooms_per_fold, "rendered rooms per calibration fold")
+      ->check(CLI::PositiveNumber);
   bool no_scene_smoothing = false;
   app.add_flag("--no-scene-smoothing", no_scene_smoothing,
                "recognise scenes without MLS smoothing, as training scans are: faster, see the README's figures");
@@ -34,6 +67,17 @@ int main(int argc, char** argv) {
     return 2;
   }
   if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
+  if (!vote_frame.empty()) params.voting.frame = vote_frame == "lrf" ? ism::VoteFrame::kLrf : ism::VoteFrame::kUpright;
+  if (no_gravity) {
+    params.front_end.gravity.enabled = false;
+    params.voting = {ism::VoteFrame::kLrf, 0.0f};
+  }
+  if (no_training_floor) params.render_floor = false;
+  if (no_calibration) params.calibration.enabled = false;
+  if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
+    std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";
+    return 2;
+  }
   for (const auto& bin : bins) {
     const auto eq = bin.find('=');
     try {

@@ -21,6 +21,7 @@ std::vector<Model> heldOutModels(const LeaveOneOutInput& input) {
     (input.codebook_type == CodebookType::kGlobal ? reduced.global_votes : reduced.own_votes) =
         packVotes(input.votes, input.codebook.size(), m);
     held_out[static_cast<size_t>(m)].categories.push_back(std::move(reduced));
+    held_out[static_cast<size_t>(m)].voting = input.voting;
   }
   return held_out;
 }

@@ -21,6 +21,7 @@ struct LeaveOneOutInput {
   const std::vector<const TrainingScan*>& scans;  // of the category
   int models;                                     // model_index < models
   float bin_size;                                 // the category's Hough bin
+  VotingParams voting{};                          // how the votes are cast
 };
 
 // The threshold of one strategy and the held-out scores behind it.

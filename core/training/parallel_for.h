@@ -3,7 +3,21 @@
 #include <exception>
 #include <mutex>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 namespace ism {
+
+// The threads a training stage runs on: `requested`, or every core when it is 0.
+inline int trainingThreads(int requested) {
+#ifdef _OPENMP
+  return requested > 0 ? requested : omp_get_max_threads();
+#else
+  (void)requested;
+  return 1;
+#endif
+}
 
 // Runs body(i) for i in [0, n) on `threads` OpenMP threads; the first exception is rethrown.
 template <typename F>

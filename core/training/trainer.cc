@@ -16,6 +16,7 @@
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
 #include "core/recognition/box_selection.h"
+#include "core/training/calibration.h"
 #include "core/training/leave_one_out.h"
 #include "core/training/parallel_for.h"
 #include "core/training/statistics.h"
@@ -37,14 +38,7 @@ std::string fixed(double value, int digits) {
   return s.str();
 }
 
-int threadCount(const TrainingParams& params) {
-#ifdef _OPENMP
-  return params.threads > 0 ? params.threads : omp_get_max_threads();
-#else
-  (void)params;
-  return 1;
-#endif
-}
+int threadCount(const TrainingParams& params) { return trainingThreads(params.threads); }
 
 DescriptorMatrix stackDescriptors(const std::vector<const TrainingScan*>& scans) {
   Eigen::Index rows = 0, cols = 0;
@@ -146,7 +140,28 @@ CategoryModel categoryModel(const std::string& name, const CategoryScans& catego
   model.training_models = category.models;
   model.training_scans = static_cast<int>(category.scans.size());
   model.box = keypointBoxStats(category.scans);
+  // Scans made without a mesh (hand-made, or from another tool) carry no object size: such a
+  // category has no size priors and its boxes come from the keypoints.
+  const bool sized = std::all_of(category.scans.begin(), category.scans.end(),
+                                 [](const TrainingScan* s) { return (s->object_size.array() > 0).all(); });
+  if (sized) {
+    model.objects.resize(static_cast<size_t>(category.models));
+    for (const auto* s : category.scans) {
+      model.objects[static_cast<size_t>(s->model_index)] = {s->object_size, s->object_center.z()};
+    }
+  }
   return model;
+}
+
+// Training meshes stand upright on z = 0, so a scan's up and floor are known exactly; the
+// gravity stage's estimate of them is replaced.
+void setKnownFloor(Features& features) {
+  Gravity& g = *features.gravity;
+  g.up = Eigen::Vector3f::UnitZ();
+  g.source = UpSource::kGiven;
+  g.floor_level = 0.0f;
+  features.heights.resize(features.size());
+  for (size_t k = 0; k < features.size(); ++k) features.heights[k] = features.positions[k].z();
 }
 
 // k-means of the scans' descriptors into a codebook, with its progress line.
@@ -218,7 +233,7 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
   const auto votes_start = Clock::now();
   std::vector<std::vector<TrainingVote>> votes(by_category.size());
   for (size_t c = 0; c < by_category.size(); ++c) {
-    votes[c] = trainingVotes(by_category[c].scans, *codebook_of[c]);
+    votes[c] = trainingVotes(by_category[c].scans, *codebook_of[c], params.voting.frame);
     VoteTable table = packVotes(votes[c], codebook_of[c]->size());
     (type == CodebookType::kGlobal ? model.categories[c].global_votes : model.categories[c].own_votes) = std::move(table);
   }
@@ -229,7 +244,7 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
   for (size_t c = 0; c < by_category.size(); ++c) {
     CategoryModel& category = model.categories[c];
     const LeaveOneOutInput input{category.name,          type,   *codebook_of[c], votes[c], by_category[c].scans,
-                                 by_category[c].models, category.bin_size};
+                                 by_category[c].models, category.bin_size, params.voting};
     const std::vector<LeaveOneOutThreshold> thresholds =
         leaveOneOutThresholds(input, activations, params.threshold_floor, threadCount(params));
     for (const LeaveOneOutThreshold& t : thresholds) {
@@ -243,6 +258,15 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
 
 }  // namespace
 
+TrainingParams seedTrainingParams() {
+  TrainingParams params;
+  params.front_end.gravity.enabled = false;
+  params.voting = VotingParams{VoteFrame::kLrf, 0.0f};
+  params.render_floor = false;
+  params.calibration.enabled = false;
+  return params;
+}
+
 float defaultBinSize(const std::string& category) {
   // The seed: ~10 cm bins for chairs, ~20 cm for tables and couches, i.e. by object size.
   try {
@@ -252,17 +276,38 @@ float defaultBinSize(const std::string& category) {
   }
 }
 
-std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params) {
+std::vector<Mesh> placeMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params) {
   const auto start = Clock::now();
-  const int threads = threadCount(params);
   std::vector<Mesh> placed(meshes.size());
-  std::vector<int> model_index(meshes.size());
-  std::map<std::string, int> per_category;
-  for (size_t i = 0; i < meshes.size(); ++i) model_index[i] = per_category[meshes[i].category]++;
-  parallelFor(static_cast<int>(meshes.size()), threads, [&](int i) {
+  parallelFor(static_cast<int>(meshes.size()), threadCount(params), [&](int i) {
     placed[static_cast<size_t>(i)] = placeMesh(loadMesh(meshes[static_cast<size_t>(i)].path), meshes[static_cast<size_t>(i)].placement);
   });
   if (params.progress) params.progress("loaded " + std::to_string(meshes.size()) + " meshes in " + fixed(secondsSince(start), 1) + " s");
+  return placed;
+}
+
+std::vector<int> modelIndices(const std::vector<TrainingMesh>& meshes) {
+  std::vector<int> model_index(meshes.size());
+  std::map<std::string, int> per_category;
+  for (size_t i = 0; i < meshes.size(); ++i) model_index[i] = per_category[meshes[i].category]++;
+  return model_index;
+}
+
+std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params) {
+  return scanMeshes(meshes, placeMeshes(meshes, params), params);
+}
+
+std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>& placed,
+                                     const TrainingParams& params) {
+  if (placed.size() != meshes.size()) {
+    throw Error(ErrorCode::kInternal, "scanMeshes: " + std::to_string(placed.size()) + " placed meshes for " +
+                                          std::to_string(meshes.size()));
+  }
+  const auto start = Clock::now();
+  const int threads = threadCount(params);
+  const std::vector<int> model_index = modelIndices(meshes);
+  std::map<std::string, int> per_category;
+  for (const auto& m : meshes) ++per_category[m.category];
 
   std::vector<std::vector<Eigen::Isometry3f>> views(meshes.size());
   std::vector<std::pair<int, int>> jobs;  // (mesh, view)
@@ -270,6 +315,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     views[m] = viewRing(placed[m], params.views);
     for (size_t v = 0; v < views[m].size(); ++v) jobs.emplace_back(static_cast<int>(m), static_cast<int>(v));
   }
+  const Mesh floor = floorMesh(params.floor_size);
   std::vector<TrainingScan> scans(jobs.size());
   std::mutex progress_mutex;
   int done = 0;
@@ -279,14 +325,19 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     const TrainingMesh& mesh = meshes[static_cast<size_t>(m)];
     NoiseParams noise = params.noise;
     noise.seed += static_cast<uint32_t>(j);  // independent noise per scan, reproducible
-    const DepthImage depth = renderDepth({&placed[static_cast<size_t>(m)]}, views[static_cast<size_t>(m)][static_cast<size_t>(v)],
-                                         params.intrinsics, noise);
+    std::vector<const Mesh*> rendered{&placed[static_cast<size_t>(m)]};
+    if (params.render_floor) rendered.push_back(&floor);
+    const DepthImage depth = renderDepth(rendered, views[static_cast<size_t>(m)][static_cast<size_t>(v)], params.intrinsics, noise);
     const std::string source = mesh.path + " view " + std::to_string(v + 1);
     TrainingScan& scan = scans[static_cast<size_t>(j)];
     scan.category = mesh.category;
     scan.model_index = model_index[static_cast<size_t>(m)];
     scan.object_center = placed[static_cast<size_t>(m)].bounds().center();
-    scan.features = extractFeatures(depthImageToWorldScene(depth, source), params.front_end, false).features;
+    scan.object_size = placed[static_cast<size_t>(m)].bounds().sizes();
+    Scene scene = depthImageToWorldScene(depth, source);
+    scene.up = Eigen::Vector3f::UnitZ();  // meshes are placed upright on z = 0
+    scan.features = extractFeatures(scene, params.front_end, false).features;
+    if (scan.features.gravity) setKnownFloor(scan.features);
     scan.keypoint_box = fitOrientedBox(scan.features.positions);
     if (params.progress) {
       std::lock_guard<std::mutex> lock(progress_mutex);
@@ -305,6 +356,7 @@ Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<s
   checkTrainingParams(categories, params);
   Model model;
   model.front_end = params.front_end;
+  model.voting = params.voting;
   model.trained_knn = params.knn;
   model.trained_knn.strategy = ActivationStrategy::kKnn;
   model.trained_cutoff = params.cutoff;
@@ -325,8 +377,17 @@ Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& param
   for (const auto& m : meshes) {
     if (std::find(categories.begin(), categories.end(), m.category) == categories.end()) categories.push_back(m.category);
   }
-  const std::vector<TrainingScan> scans = scanMeshes(meshes, params);
+  const std::vector<Mesh> placed = placeMeshes(meshes, params);
+  const std::vector<TrainingScan> scans = scanMeshes(meshes, placed, params);
   Model model = trainFromScans(scans, categories, params);
+  if (params.calibration.enabled && model.global_codebook) {
+    const auto calibration_start = Clock::now();
+    std::vector<PlacedObject> objects;
+    const std::vector<int> model_index = modelIndices(meshes);
+    for (size_t i = 0; i < meshes.size(); ++i) objects.push_back({meshes[i].category, model_index[i], &placed[i]});
+    calibrate(model, scans, objects, params);
+    if (params.progress) params.progress("calibration took " + fixed(secondsSince(calibration_start), 1) + " s");
+  }
   for (const auto& m : meshes) model.provenance.meshes.push_back(m.category + "\t" + m.path + "\t" + m.credit);
   model.provenance.scans = static_cast<int>(scans.size());
   model.provenance.created = utcNow();

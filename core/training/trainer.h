@@ -13,8 +13,30 @@
 
 namespace ism {
 
+// The rendered rooms calibration (calibration.h) fits confidences to.
+struct CalibrationParams {
+  bool enabled = true;
+  int folds = 3;              // training objects split k-fold; each fold's rooms hold its objects
+  int rooms_per_fold = 40;
+  int max_objects = 3;        // furniture per room (1..max)
+  int clutter_boxes = 3;      // boxes, cabinets and shelves per room (0..max)
+  float camera_height_min = 0.6f, camera_height_max = 1.8f;  // a robot's to a person's
+  float distance_min = 1.5f, distance_max = 4.0f;             // camera to the room's middle (m)
+  // Peaks are collected down to this fraction of each category's leave-one-out threshold.
+  float lowest_score_fraction = 0.02f;
+  uint32_t seed = 7;
+};
+
 struct TrainingParams {
   FrontEndParams front_end;  // smoothing is stored for scenes; training scans are not smoothed
+  // Upright votes with the height test: see VotingParams. The seed's: LRF votes, no heights.
+  VotingParams voting{VoteFrame::kUpright, 0.1f};
+  // Scans see the mesh standing on a floor, as a robot sees furniture: its legs end on the floor
+  // rather than against empty space, and the floor (never a keypoint) is in its descriptors'
+  // support. The seed rendered the mesh alone.
+  bool render_floor = true;
+  float floor_size = 8.0f;  // m, square
+  CalibrationParams calibration;  // the seed's models have none
   ViewRingParams views;      // 12 views, as in the seed
   CameraIntrinsics intrinsics;
   NoiseParams noise;
@@ -36,6 +58,10 @@ struct TrainingParams {
   std::string command;  // recorded in provenance
 };
 
+// Training as the seed describes it (../shared/docs/ALGORITHM.md): no gravity stage, votes in
+// the SHOT LRF, meshes rendered alone. The defaults of TrainingParams are the project's own.
+TrainingParams seedTrainingParams();
+
 // Seed bin sizes: ~10 cm for chairs, ~20 cm for tables and couches.
 float defaultBinSize(const std::string& category);
 
@@ -45,11 +71,19 @@ struct TrainingScan {
   int model_index;  // which mesh of the category
   Features features;
   Eigen::Vector3f object_center;  // true centre (world frame)
+  Eigen::Vector3f object_size = Eigen::Vector3f::Zero();  // its box: width (x), depth (y), height (z)
   OrientedBox keypoint_box;
 };
 
+// Loads each mesh and puts it upright at its real size on z = 0 (placeMesh).
+std::vector<Mesh> placeMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
+// Per mesh, its index among the meshes of its category (TrainingScan::model_index).
+std::vector<int> modelIndices(const std::vector<TrainingMesh>& meshes);
+
 // Renders and describes every mesh from every view.
 std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
+std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>& placed,
+                                     const TrainingParams& params);
 
 // Everything after scanning (codebooks, votes, thresholds, boxes); exposed for evaluation.
 Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<std::string>& categories,

@@ -70,6 +70,7 @@ Hypothesis hypothesis(const std::string& category, float score, const Eigen::Vec
   Hypothesis h;
   h.category = category;
   h.score = score;
+  h.confidence = score / 10;  // what ranks a class's detections
   h.support_centroid = at;
   h.center = at;
   h.passed_selection = selected;

@@ -17,8 +17,9 @@ using testing::kKeypoints;
 using testing::kModels;
 using testing::kScansPerModel;
 
+// The hand-made scans have LRFs but no up: their votes are the seed's.
 TrainingParams smallParams() {
-  TrainingParams p;
+  TrainingParams p = seedTrainingParams();
   p.global_kmeans.k = 2 * kKeypoints;
   p.separated_kmeans.k = kKeypoints;
   return p;

@@ -1,0 +1,23 @@
+#pragma once
+// One object, one answer. Peaks of one category on one object (a table's long top gives
+// several) merge into the most confident; hypotheses of different categories on one object
+// compete, the most confident wins, and the others stay on it as alternatives. Two hypotheses
+// are on one object when their upright boxes overlap by at least `min_iou` or the centre of one
+// lies inside the other's footprint.
+#include <Eigen/Core>
+#include <vector>
+
+#include "core/recognition/hypothesis.h"
+
+namespace ism {
+
+struct SuppressionParams {
+  float min_iou = 0.25f;
+};
+
+// `hypotheses` in any order, with boxes in scene coordinates; `to_gravity` turns them into the
+// gravity frame (Gravity::toGravity). Returns the survivors, most confident first.
+std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, const Eigen::Matrix3f& to_gravity,
+                                         const SuppressionParams& params = {});
+
+}  // namespace ism

@@ -1,0 +1,299 @@
+#include "core/training/calibration.h"
+
+#include <algorithm>
+#include <cmath>
+#include <mutex>
+#include <random>
+#include <sstream>
+
+#include <Eigen/Dense>
+
+#include "core/common/error.h"
+#include "core/common/upright_box.h"
+#include "core/frontend/frontend.h"
+#include "core/recognition/recognizer.h"
+#include "core/recognition/suppression.h"
+#include "core/scanner/scanner.h"
+#include "core/training/parallel_for.h"
+#include "core/training/votes.h"
+
+namespace ism {
+namespace {
+
+// A box of the room: a wall, a cabinet, a shelf. Things no furniture category is.
+Mesh boxMesh(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
+  Mesh mesh;
+  for (int i = 0; i < 8; ++i) {
+    mesh.vertices.emplace_back(i & 1 ? hi.x() : lo.x(), i & 2 ? hi.y() : lo.y(), i & 4 ? hi.z() : lo.z());
+  }
+  const int faces[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : faces) {
+    mesh.triangles.emplace_back(f[0], f[1], f[2]);
+    mesh.triangles.emplace_back(f[0], f[2], f[3]);
+  }
+  return mesh;
+}
+
+// The model with the votes of the training objects in `held_out` (per category, per model index)
+// left out: what recognises the fold's rooms.
+Model foldModel(const Model& model, const std::vector<std::vector<TrainingVote>>& votes,
+                const std::vector<std::vector<bool>>& held_out) {
+  Model fold;
+  fold.front_end = model.front_end;
+  fold.voting = model.voting;
+  fold.trained_knn = model.trained_knn;
+  fold.trained_cutoff = model.trained_cutoff;
+  fold.global_codebook = model.global_codebook;
+  for (size_t c = 0; c < model.categories.size(); ++c) {
+    CategoryModel category = model.categories[c];
+    category.own_codebook.reset();
+    category.own_votes = {};
+    category.calibration.reset();
+    category.global_votes = packVotes(votes[c], model.global_codebook->size(), held_out[c]);
+    fold.categories.push_back(std::move(category));
+  }
+  return fold;
+}
+
+struct Room {
+  SyntheticScene scene;
+  std::vector<std::string> categories;  // of scene.objects, furniture first, then clutter ("")
+};
+
+// Up to max_objects of `candidates` (held-out furniture) standing apart on the floor, a wall or
+// two behind them, a few boxes, seen from a random camera.
+Room composeRoom(const std::vector<const PlacedObject*>& candidates, const CalibrationParams& params,
+                 std::mt19937& rng) {
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
+  std::vector<SceneObject> objects;
+  std::vector<std::pair<Eigen::Vector2f, float>> taken;  // footprint circles
+  const auto place = [&](float radius, Eigen::Vector2f& at) {
+    for (int attempt = 0; attempt < 50; ++attempt) {
+      at = {uniform(-1.6f, 1.6f), uniform(-1.2f, 1.2f)};
+      const bool free = std::all_of(taken.begin(), taken.end(), [&](const auto& t) {
+        return (t.first - at).norm() > t.second + radius + 0.1f;
+      });
+      if (free) {
+        taken.emplace_back(at, radius);
+        return true;
+      }
+    }
+    return false;
+  };
+  Room room;
+  const int furniture = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_objects));
+  for (int i = 0; i < std::min<int>(furniture, static_cast<int>(candidates.size())); ++i) {
+    const PlacedObject& o = *candidates[static_cast<size_t>(unit(rng) * static_cast<float>(candidates.size())) % candidates.size()];
+    const Eigen::Vector3f size = o.mesh->bounds().sizes();
+    Eigen::Vector2f at;
+    if (!place(0.5f * std::hypot(size.x(), size.y()), at)) continue;
+    objects.push_back({o.category, *o.mesh, at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
+    room.categories.push_back(o.category);
+  }
+  // Walls at the room's far side and one side, shelves and cabinets against or near them.
+  objects.push_back({"", boxMesh({-3.5f, 2.2f, 0}, {3.5f, 2.3f, 2.5f}), 0, 0, 0});
+  if (unit(rng) < 0.5f) objects.push_back({"", boxMesh({-3.5f, -4.0f, 0}, {-3.4f, 2.3f, 2.5f}), 0, 0, 0});
+  const int boxes = static_cast<int>(unit(rng) * static_cast<float>(params.clutter_boxes + 1));
+  for (int i = 0; i < boxes; ++i) {
+    const Eigen::Vector3f size(uniform(0.2f, 1.2f), uniform(0.2f, 0.6f), uniform(0.2f, 2.0f));
+    Eigen::Vector2f at;
+    if (!place(0.5f * std::hypot(size.x(), size.y()), at)) continue;
+    objects.push_back({"", boxMesh(-size.cwiseProduct(Eigen::Vector3f(0.5f, 0.5f, 0)), size.cwiseProduct(Eigen::Vector3f(0.5f, 0.5f, 1))),
+                       at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
+  }
+  SyntheticSceneParams scene;
+  const float azimuth = uniform(-2.4f, -0.7f);  // from the open side, facing the far wall
+  const float distance = uniform(params.distance_min, params.distance_max);
+  scene.camera_eye = {distance * std::cos(azimuth), distance * std::sin(azimuth),
+                      uniform(params.camera_height_min, params.camera_height_max)};
+  scene.camera_target = {uniform(-0.5f, 0.5f), uniform(-0.5f, 0.5f), uniform(0.2f, 0.6f)};
+  scene.floor_size = 8.0f;
+  scene.noise.seed = static_cast<uint32_t>(rng());
+  room.scene = composeScene(objects, scene);
+  return room;
+}
+
+// Labels one room's peaks, category by category: the best peak on an object of its category is a
+// positive, every other peak that is not another peak of that object a negative.
+void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
+                std::vector<CalibrationSample>& out) {
+  for (size_t c = 0; c < model.categories.size(); ++c) {
+    const std::string& name = model.categories[c].name;
+    std::vector<Hypothesis> own;
+    for (const auto& p : peaks) {
+      if (p.category == name) own.push_back(p);
+    }
+    own = suppressOverlaps(std::move(own), to_gravity);  // one per object, as recognition keeps
+    std::vector<bool> matched(room.categories.size(), false);
+    for (const auto& p : own) {  // most confident, i.e. highest score, first
+      bool positive = false;
+      for (size_t o = 0; o < room.categories.size() && !positive; ++o) {
+        if (matched[o] || room.categories[o] != name) continue;
+        const GroundTruthObject& truth = room.scene.objects[o];
+        const Eigen::Vector2f offset = (to_gravity * (p.center - truth.center)).head<2>();
+        const UprightBox box{to_gravity * truth.center, truth.size, truth.yaw};
+        // The evaluation's rules: the centre within a quarter of the object's longest side, or
+        // the boxes overlapping by a quarter.
+        positive = offset.norm() <= truth.size.maxCoeff() / 4 ||
+                   intersectionOverUnion(uprightBoxOf(p.box, to_gravity), box) >= 0.25f;
+        if (positive) matched[o] = true;
+      }
+      out.push_back({static_cast<int>(c), p.score, p.support, positive});
+    }
+  }
+}
+
+}  // namespace
+
+std::vector<CalibrationSample> calibrationSamples(const Model& model, const std::vector<TrainingScan>& scans,
+                                                  const std::vector<PlacedObject>& objects,
+                                                  const TrainingParams& params) {
+  if (!model.global_codebook) throw Error(ErrorCode::kInvalidInput, "calibration needs the global codebook");
+  const CalibrationParams& cp = params.calibration;
+  if (cp.folds < 2) throw Error(ErrorCode::kInvalidInput, "calibration needs at least 2 folds");
+  std::vector<std::vector<TrainingVote>> votes(model.categories.size());
+  std::vector<int> models(model.categories.size(), 0);
+  for (size_t c = 0; c < model.categories.size(); ++c) {
+    std::vector<const TrainingScan*> own;
+    for (const auto& s : scans) {
+      if (s.category == model.categories[c].name) own.push_back(&s);
+    }
+    votes[c] = trainingVotes(own, *model.global_codebook, model.voting.frame);
+    models[c] = model.categories[c].training_models;
+  }
+  Strategy strategy{CodebookType::kGlobal, model.trained_knn, VoteWeighting::kLocalization};
+  std::vector<CalibrationSample> samples;
+  std::mutex mutex;
+  for (int fold = 0; fold < cp.folds; ++fold) {
+    // A category's fold holds models m with m % folds == fold, unless that would leave it none.
+    std::vector<std::vector<bool>> held_out(model.categories.size());
+    std::vector<const PlacedObject*> candidates;
+    for (size_t c = 0; c < model.categories.size(); ++c) {
+      held_out[c].assign(static_cast<size_t>(models[c]), false);
+      for (int m = fold; m < models[c]; m += cp.folds) held_out[c][static_cast<size_t>(m)] = true;
+      if (std::count(held_out[c].begin(), held_out[c].end(), false) == 0) std::fill(held_out[c].begin(), held_out[c].end(), false);
+    }
+    for (const auto& o : objects) {
+      const CategoryModel* c = model.find(o.category);
+      if (c == nullptr) continue;
+      const auto index = static_cast<size_t>(c - model.categories.data());
+      if (static_cast<size_t>(o.model_index) < held_out[index].size() && held_out[index][static_cast<size_t>(o.model_index)]) {
+        candidates.push_back(&o);
+      }
+    }
+    if (candidates.empty()) continue;
+    const Model fold_model = foldModel(model, votes, held_out);
+    RecognitionOptions options;
+    options.strategy = strategy;
+    options.min_confidence = 0;
+    options.one_answer_per_object = false;
+    parallelFor(cp.rooms_per_fold, trainingThreads(params.threads), [&](int r) {
+      std::mt19937 rng(cp.seed + static_cast<uint32_t>(fold * 100003 + r));
+      const Room room = composeRoom(candidates, cp, rng);
+      if (room.scene.scene.cloud->size() < 1000) return;  // the camera saw next to nothing
+      const Features features = extractFeatures(room.scene.scene, fold_model.front_end, false).features;
+      std::vector<CalibrationSample> found;
+      for (size_t c = 0; c < fold_model.categories.size(); ++c) {
+        RecognitionOptions category_options = options;
+        category_options.categories = {fold_model.categories[c].name};
+        const auto t = fold_model.categories[c].thresholds.find({CodebookType::kGlobal, strategy.activation.strategy,
+                                                                 VoteWeighting::kLocalization});
+        if (t == fold_model.categories[c].thresholds.end()) continue;
+        category_options.min_score = cp.lowest_score_fraction * t->second;
+        auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
+        const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
+        labelPeaks(fold_model, room, std::move(peaks), to_gravity, found);
+      }
+      std::lock_guard<std::mutex> lock(mutex);
+      samples.insert(samples.end(), found.begin(), found.end());
+    });
+  }
+  return samples;
+}
+
+Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
+  Calibration fit;
+  for (const auto& s : samples) (s.positive ? fit.positives : fit.negatives) += 1;
+  if (fit.positives == 0 || fit.negatives == 0) {
+    throw Error(ErrorCode::kInvalidInput, "calibration needs positive and negative peaks, got " +
+                                              std::to_string(fit.positives) + " and " + std::to_string(fit.negatives));
+  }
+  // Features (ln s, ln(s / n), 1); weights (a, c, b).
+  std::vector<Eigen::Vector3d> x;
+  std::vector<double> y;
+  for (const auto& s : samples) {
+    const double score = std::max(static_cast<double>(s.score), 1e-9);
+    x.emplace_back(std::log(score), std::log(score / std::max(s.support, 1)), 1.0);
+    y.push_back(s.positive ? 1.0 : 0.0);
+  }
+  // Newton's method on the mean log-loss, each step halved until the loss falls; the ridge (not
+  // on the intercept) keeps a separable set finite.
+  constexpr double kRidge = 1e-3;
+  const Eigen::Vector3d ridge(kRidge, kRidge, 0);
+  const double n = static_cast<double>(x.size());
+  const auto loss = [&](const Eigen::Vector3d& w) {
+    double sum = 0;
+    for (size_t i = 0; i < x.size(); ++i) {
+      const double z = w.dot(x[i]);
+      const double m = y[i] > 0 ? -z : z;  // log(1 + exp(m)), without overflow
+      sum += m > 0 ? m + std::log1p(std::exp(-m)) : std::log1p(std::exp(m));
+    }
+    return sum / n + 0.5 * w.dot(ridge.cwiseProduct(w));
+  };
+  Eigen::Vector3d w(1, 0, 0);
+  double current = loss(w);
+  for (int iteration = 0; iteration < 100; ++iteration) {
+    Eigen::Vector3d gradient = ridge.cwiseProduct(w);
+    Eigen::Matrix3d hessian = ridge.asDiagonal();
+    hessian(2, 2) += 1e-9;
+    for (size_t i = 0; i < x.size(); ++i) {
+      const double p = 1.0 / (1.0 + std::exp(-w.dot(x[i])));
+      gradient += (p - y[i]) / n * x[i];
+      hessian += p * (1 - p) / n * x[i] * x[i].transpose();
+    }
+    const Eigen::Vector3d delta = hessian.ldlt().solve(gradient);
+    double step = 1;
+    while (step > 1e-6 && !(loss(w - step * delta) < current)) step /= 2;
+    if (step <= 1e-6) break;
+    w -= step * delta;
+    const double next = loss(w);
+    const bool converged = current - next < 1e-12;
+    current = next;
+    if (converged) break;
+  }
+  fit.a = static_cast<float>(w.x());
+  fit.c = static_cast<float>(w.y());
+  fit.b = static_cast<float>(w.z());
+  return fit;
+}
+
+void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
+               const TrainingParams& params) {
+  const std::vector<CalibrationSample> samples = calibrationSamples(model, scans, objects, params);
+  for (size_t c = 0; c < model.categories.size(); ++c) {
+    std::vector<CalibrationSample> own;
+    for (const auto& s : samples) {
+      if (s.category == static_cast<int>(c)) own.push_back(s);
+    }
+    CategoryModel& category = model.categories[c];
+    std::ostringstream line;
+    line.setf(std::ios::fixed);
+    line.precision(3);
+    try {
+      Calibration fit = fitCalibration(own);
+      if (!(fit.a + fit.c > 0)) throw Error(ErrorCode::kInvalidInput, "the fitted confidence falls with the score");
+      const auto t = category.thresholds.find({CodebookType::kGlobal, model.trained_knn.strategy, VoteWeighting::kLocalization});
+      fit.min_score = t == category.thresholds.end() ? 0.0f : params.calibration.lowest_score_fraction * t->second;
+      category.calibration = fit;
+      line << category.name << " calibration: ln s " << fit.a << ", ln(s / support) " << fit.c << ", bias " << fit.b
+           << " (" << fit.positives << " positive and " << fit.negatives << " negative peaks)";
+    } catch (const Error& e) {
+      category.calibration.reset();
+      line << category.name << " calibration: none (" << e.what() << ")";
+    }
+    if (params.progress) params.progress(line.str());
+  }
+}
+
+}  // namespace ism

@@ -1,0 +1,52 @@
+#pragma once
+// Calibration: a confidence that means the same for every category. Vote scores are not
+// comparable across categories (a couch's votes spread wider than a chair's) nor between the
+// training scans and the world (a held-out training scan shows the whole object up close, a
+// room shows part of it among clutter). So each category's scores are mapped to a probability,
+// fitted to what the model finds in scenes that look like the world: rendered rooms with a
+// floor, walls and boxes, furniture the model was not trained on (k-fold over the training
+// objects, votes of the held-out fold left out), cameras at a robot's and a person's height.
+// Every peak of a category is labelled by whether an object of that category is there; a
+// logistic regression over the log score and the log score per supporting keypoint gives the
+// confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
+#include <string>
+#include <vector>
+
+#include "core/model/model.h"
+#include "core/scanner/mesh.h"
+#include "core/training/trainer.h"
+
+namespace ism {
+
+// One training mesh as the calibration scenes place it.
+struct PlacedObject {
+  std::string category;
+  int model_index = 0;  // TrainingScan::model_index
+  const Mesh* mesh = nullptr;  // upright on z = 0 (placeMesh)
+};
+
+// One labelled peak: its score and support and whether an object of its category was there.
+struct CalibrationSample {
+  int category = 0;  // index into Model::categories
+  float score = 0;
+  int support = 0;
+  bool positive = false;
+};
+
+// The peaks of the calibration scenes, every category's. `scans` are the training scans the
+// model was trained from (their votes are re-made per fold).
+std::vector<CalibrationSample> calibrationSamples(const Model& model, const std::vector<TrainingScan>& scans,
+                                                  const std::vector<PlacedObject>& objects,
+                                                  const TrainingParams& params);
+
+// Logistic regression of `positive` on ln score and ln(score / support) (Newton's method with
+// step halving, a little ridge so that a separable category still gets finite slopes). Throws
+// Error(kInvalidInput) without both positives and negatives.
+Calibration fitCalibration(const std::vector<CalibrationSample>& samples);
+
+// Fits every category of `model` that has positives and negatives among the samples; the
+// others keep no calibration. Progress lines go to params.progress.
+void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
+               const TrainingParams& params);
+
+}  // namespace ism

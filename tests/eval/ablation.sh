@@ -1,0 +1,78 @@
+#!/usr/bin/env bash
+# The ablation of docs/EVALUATION.md: one model per step of the default pipeline, each trained
+# from the shipped model's meshes (Debian's sweethome3d-furniture) and evaluated with ism-eval
+# on the development scans in ../shared/data/real and the shipped sample scene. Every row adds
+# one step to the one above it; the first is the seed's pipeline.
+#   tests/eval/ablation.sh [BUILD_DIR] [OUTPUT.md]      (about 15 minutes on 2 cores)
+# Writes the table to OUTPUT.md (default: stdout) and keeps the models and ism-eval's JSON in
+# BUILD_DIR/ablation/.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/../.." && pwd)
+build=$(cd "${1:-$root/build}" && pwd)
+out=${2:-/dev/stdout}
+real=$root/../shared/data/real
+[[ -d $real ]] || { echo "skipped: $real is absent (development data, see ../shared/docs/DATASETS.md)"; exit 0; }
+work=$build/ablation
+mkdir -p "$work"
+manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
+           --manifest-only)
+
+# name | ism-train options | ism-eval options | what the row adds
+steps=(
+  "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
+  "planes|--vote-frame lrf --height-tolerance 0 --no-calibration|--preset seed|+ up and floor: floor and walls never keypoints, training meshes on a floor"
+  "upright|--height-tolerance 0 --no-calibration|--preset seed|+ upright vote frames"
+  "heights|--no-calibration|--preset seed|+ the height test: votes only from training keypoints at the keypoint's height"
+  "one-answer|--no-calibration|--preset default|+ upright boxes from the training objects, height prior, one answer per object"
+  "calibrated||--preset default|+ confidence calibrated on rendered rooms (the default)"
+)
+rows=()
+for step in "${steps[@]}"; do
+  IFS='|' read -r name train_args eval_args what <<< "$step"
+  model=$work/$name.ismm
+  start=$(date +%s.%N)
+  # shellcheck disable=SC2086
+  "$build/core/ism-train" --manifest "$manifest" -o "$model" --codebook global --no-scene-smoothing $train_args \
+    > "$work/$name.train.log"
+  seconds=$(echo "$(date +%s.%N) - $start" | bc)
+  for subset in all organized unorganized; do
+    case $subset in
+      all) scenes=("$real/kinect" "$root/models/sample/living_room.json" "$real/sunrgbd" "$real/scannet") ;;
+      organized) scenes=("$real/kinect" "$root/models/sample/living_room.json") ;;
+      unorganized) scenes=("$real/sunrgbd" "$real/scannet") ;;
+    esac
+    # shellcheck disable=SC2086
+    "$build/core/ism-eval" real -m "$model" "${scenes[@]}" $eval_args --json "$work/$name.$subset.json" \
+      > "$work/$name.$subset.txt" 2> /dev/null
+  done
+  rows+=("$name|$what|$seconds")
+  echo "ablation: $name done" >&2
+done
+
+/usr/bin/python3 - "$work" "${rows[@]}" > "$out" <<'PY'
+import json, math, sys
+work, rows = sys.argv[1], sys.argv[2:]
+
+def classes(path):
+    return {c["class"]: c for c in json.load(open(path))["combinations"][0]["classes"]}
+
+def pct(v):
+    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.1f}"
+
+print("| step | Kinect + sample mAP@0.25 | SUN RGB-D + ScanNet mAP@0.25 | chair AP@0.25 | table/desk AP@0.25 "
+      "| sofa AP@0.25 | chair r | FP per scan | training s |")
+print("|---|---|---|---|---|---|---|---|---|")
+for row in rows:
+    name, what, seconds = row.split("|")
+    everything = classes(f"{work}/{name}.all.json")
+    org, unorg = classes(f"{work}/{name}.organized.json"), classes(f"{work}/{name}.unorganized.json")
+    def map25(cs):
+        aps = [c["ap25"] for c in cs.values() if c["objects"] > 0 and c["ap25"] is not None]
+        return sum(aps) / len(aps) if aps else None
+    chair = everything["chair"]
+    scenes = max(c["scenes"] for c in everything.values())
+    fp = sum(c["fp"] for c in everything.values())
+    print(f"| {what} | {pct(map25(org))} | {pct(map25(unorg))} | {pct(chair['ap25'])} | "
+          f"{pct(everything['table|desk']['ap25'])} | {pct(everything['sofa']['ap25'])} | {pct(chair['rate'])} "
+          f"| {fp / scenes:.1f} | {float(seconds):.0f} |")
+PY
