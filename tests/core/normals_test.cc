@@ -23,8 +23,7 @@
 namespace ism {
 namespace {
 
-using testing::gridPlane;
-using testing::randomSurfacePoints;
+using namespace ism::testing;
 
 TEST(Normals, PlaneNormalsFaceTheViewpoint) {
   XyzCloud cloud = gridPlane(21, 0.005f, 1.0f);

@@ -25,18 +25,7 @@
 namespace ism {
 namespace {
 
-using testing::boxInFrontOfWall;
-using testing::boxOnFloorBeforeWall;
-using testing::distanceToBox;
-using testing::expectError;
-using testing::kBoxCols;
-using testing::kBoxHalf;
-using testing::kBoxHeight;
-using testing::kBoxRows;
-using testing::kHeight;
-using testing::kVoidColumn;
-using testing::kWidth;
-using testing::onBox;
+using namespace ism::testing;
 
 TEST(OccludingContours, NearSideOfJumpsAndSilhouettesAgainstNothingOnly) {
   const Scene scene = boxInFrontOfWall();

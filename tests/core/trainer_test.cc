@@ -12,10 +12,7 @@
 namespace ism {
 namespace {
 
-using testing::handMadeScans;
-using testing::kKeypoints;
-using testing::kModels;
-using testing::kScansPerModel;
+using namespace ism::testing;
 
 TrainingParams smallParams() {
   TrainingParams p;
