@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   bool no_scene_smoothing = false;
   app.add_flag("--no-scene-smoothing", no_scene_smoothing,
-               "recognise scenes without MLS smoothing, as training scans are: faster, see the README's figures");
+               "recognise scenes without MLS smoothing, as training scans are: faster, see docs/EVALUATION.md");
   try {
     app.parse(argc, argv);
     if (folders.empty() == manifest.empty()) throw CLI::ValidationError("give exactly one of --folders or --manifest");
