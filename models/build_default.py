@@ -108,7 +108,7 @@ def main():
     if not args.skip_training:
         out = os.path.join(HERE, "default", "furniture.ismm")
         # Scenes skip MLS, as the training scans do: on the real scenes this recognises as well or
-        # better in most cells of ism-eval's table and saves a third of a Kinect frame (README, "Measured").
+        # better in most cells of ism-eval's table and saves a third of a Kinect frame (docs/EVALUATION.md).
         cmd = [os.path.abspath(os.path.join(args.bin, "ism-train")), "--manifest", manifest, "-o", out,
                "--codebook", "both", "--no-scene-smoothing"]
         print("+", " ".join(cmd), flush=True)

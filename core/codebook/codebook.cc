@@ -86,14 +86,10 @@ Eigen::MatrixXf squaredDistances(const Eigen::Ref<const DescriptorMatrix>& a, co
 // caller, and crash a CPU without AVX2.
 //
 // Each dot product is summed in dimension order, one rounded product at a time, whatever the
-// kernel and its tile size; that is what Eigen's SSE2 GEMM, which activation used before, does.
-// So all three kernels give the same floats, on any CPU and thread count, and the GEMM's but for
-// its last few rows, which Eigen sums in another order. The kernels are built without fused
-// multiply-adds (fp-contract=off) to keep it so: FMA was 4% faster on AMD Zen 5 but changed
-// distances in the last bit, and activation-weighted scores with them.
-//
-// On tum_desk, one thread, AMD Zen 5, the Eigen GEMM and partial_sort took 16.5 ms; the baseline
-// kernel takes 15.5, AVX2 6.4 and AVX-512 3.4.
+// kernel and its tile size, as Eigen's SSE2 GEMM does. So all three kernels give the same floats,
+// on any CPU and thread count, and the GEMM's but for its last few rows, which Eigen sums in
+// another order. The kernels are built without fused multiply-adds (fp-contract=off) to keep it
+// so: FMA would change distances in the last bit, and activation-weighted scores with them.
 
 // Codewords per panel of Codebook::panels_: one AVX-512 register, two AVX2 ones.
 constexpr int kPanel = 16;
@@ -311,10 +307,10 @@ int nearestCodeword(const float* row, int codewords) {
 }
 
 // Appends row i's activations: its k nearest codewords, or those within the cutoff, nearest
-// first. `row` holds its squared distances. The selection is the one activation always made,
-// std::partial_sort or std::partition and std::sort over the codewords in order, so that equal
-// distances come out in the same order as before too; k = 1 is a scan for the first least
-// distance, which is what std::partial_sort picks.
+// first. `row` holds its squared distances. The selection is std::partial_sort or
+// std::partition and std::sort over the codewords in order, so that equal distances come out in
+// the order Codebook::activate documents; k = 1 is a scan for the first least distance, which is
+// what std::partial_sort picks.
 void selectCodewords(const float* row, int codewords, int keypoint, bool knn, int k, float cutoff_squared,
                      std::vector<int>* order, std::vector<Activation>* out) {
   if (knn && k == 1) {

@@ -42,8 +42,8 @@ struct Activation {
 
 // Which distance kernel codeword activation runs (x86-64: all three; elsewhere the baseline one).
 // kAuto takes the widest one the CPU runs; the others are there so that tests can check each.
-// All give the same floats (no fused multiply-adds), those of the Eigen GEMM activation used
-// before but for a GEMM's last few rows.
+// All give the same floats (no fused multiply-adds): each dot product summed in dimension order,
+// as Eigen's SSE2 GEMM sums all but its last few rows.
 enum class DistanceKernel { kAuto, kBaseline, kAvx2, kAvx512 };
 
 class Codebook {
@@ -57,8 +57,8 @@ class Codebook {
 
   // Activations grouped by keypoint in keypoint order, nearest codeword first. Among equal
   // distances k = 1 takes the lowest codeword; more codewords come in the order std::partial_sort
-  // (k-NN) or std::sort (cutoff) leaves them, as they always did. Search is exact and brute
-  // force: with a few hundred 352-d codewords no tree beats it.
+  // (k-NN) or std::sort (cutoff) leaves them. Search is exact and brute force: with a few
+  // hundred 352-d codewords no tree beats it.
   std::vector<Activation> activate(const DescriptorMatrix& descriptors, const ActivationParams& params,
                                    DistanceKernel kernel = DistanceKernel::kAuto) const;
 

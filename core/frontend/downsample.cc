@@ -14,8 +14,8 @@ namespace {
 // Voxel centroids in pcl::VoxelGrid's output order (ascending linear voxel index: z, then y,
 // then x). Written here rather than with pcl::VoxelGrid, which numbers voxels with a 32-bit index
 // (silently returning its input when a room at a fine leaf overflows it) and sorts with std::sort;
-// a 64-bit index and a radix sort take 0.4x its time on a Kinect frame. Non-finite points are
-// skipped, as VoxelGrid does.
+// a 64-bit index does not overflow, and a radix sort of the 64-bit keys is the cheaper sort.
+// Non-finite points are skipped, as VoxelGrid does.
 void voxelCentroids(const Cloud& cloud, float leaf, XyzCloud& out) {
   const float inverse_leaf = 1.0f / leaf;
   Eigen::Array3f lo = Eigen::Array3f::Constant(std::numeric_limits<float>::max());

@@ -56,7 +56,7 @@ void appendRun(uint32_t begin, uint32_t end, std::vector<Quad>& quads) {
 // as everywhere in the grid, (dx * dx + dy * dy) + dz * dz in float, so the set is exactly the
 // one a point-by-point test finds. With SSE2 (every x86-64) a quad takes a few instructions and
 // gives its four bits at once; appending the points within one at a time, each waiting on the
-// count of the previous, was a third of forEachPoint (216 candidates per point for 26 inside
+// count of the previous, would be a third of forEachPoint (216 candidates per point for 26 inside
 // on tum_desk's normals, by perf). The arrays must be readable 3 floats past the last point.
 void markWithin(const float* x, const float* y, const float* z, const std::vector<Quad>& quads, const float p[3],
                 float r2, uint64_t* within) {
@@ -130,10 +130,10 @@ void NeighbourGrid::build(std::vector<Eigen::Vector3f> points, float cell_size) 
   cell_size_ = cell_size;
   inverse_cell_ = 1.0f / cell_size;
   // The grid is centred on the median point, so the cells around the bulk of the cloud are
-  // always distinct. An origin at the minimum let one stray point (a smoothing fit gone wild, a
-  // bogus point in a user's cloud) push every real point past the 21-bit range into a few
-  // clamped cells, and the searches became quadratic: normals on a 640x480 frame took 17-29 s
-  // instead of 0.1 s. Only points more than 2^20 cells from the median share clamped cells now.
+  // always distinct: with an origin at the minimum, one stray point (a smoothing fit gone wild, a
+  // bogus point in a user's cloud) would push every real point past the 21-bit range into a few
+  // clamped cells, and the searches would become quadratic. Only points more than 2^20 cells from
+  // the median share clamped cells.
   inverse_cell_exact_ = 1.0 / static_cast<double>(cell_size);
   first_cell_ = Eigen::Vector3d::Zero();
   std::vector<float> axis;
@@ -293,7 +293,7 @@ std::vector<uint8_t> NeighbourGrid::pointsWithin(const std::vector<Eigen::Vector
   if (cells_.empty() || !(radius >= 0.0f)) return flags;
   const float r2 = radius * radius;
   const int s = span(radius);
-  // The queries by cell: those in one cell share the cells around it. Looking those up was
+  // The queries by cell: those in one cell share the cells around it. Looking those up is
   // most of a search (49 columns at 8 cm in 3 cm cells), and contour keypoints come 2-3 a cell.
   std::vector<std::pair<uint64_t, int>> keyed;
   keyed.reserve(queries.size());

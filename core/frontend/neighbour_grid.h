@@ -2,8 +2,8 @@
 // Fixed-radius neighbour search over a cloud that does not change, for the front end's
 // surface-sized searches (MLS at 2 cm, normals at 3 cm, SHOT at 8 cm over 1 cm voxels).
 //
-// Why not PCL's FLANN k-d tree: on a 640x480 Kinect frame the front end spent about 60% of its
-// single-core time building trees and walking them (perf on tum_desk). Points here are voxel
+// Why not PCL's FLANN k-d tree: building trees and walking them is most of the front end's
+// single-core time on a 640x480 Kinect frame (perf on tum_desk). Points here are voxel
 // centroids, so a uniform grid with cells as large as the search radius holds a bounded number
 // of points per cell, a query visits the 27 cells around it, and when every point is a query
 // the cells' neighbourhoods are gathered once per cell instead of once per point.
@@ -141,7 +141,7 @@ class NeighbourGrid {
 // points are found, and come sorted. Radius searches come unsorted, whatever setSortedResults()
 // asked: pcl::SHOTLocalReferenceFrameEstimation asks for sorting on the search it shares with
 // SHOT, yet neither reads the order (PCL 1.13 shot_lrf.hpp, shot.hpp), and sorting every 8 cm
-// neighbourhood cost 4% of a frame.
+// neighbourhood would cost 4% of a frame.
 template <class PointT>
 class GridSearch : public pcl::search::Search<PointT> {
  public:

@@ -18,7 +18,7 @@ namespace {
 // neighbours lie together, rather than through an index list into the cloud. The mean and
 // covariance repeat pcl::computeMeanAndCovarianceMatrix (common/impl/centroid.hpp) float
 // operation for float operation, in its order, on the same values, so the normals are
-// bit-identical to PCL's (frontend_test, Normals.NearTheCentres...); the plane and curvature
+// bit-identical to PCL's (normals_test, Normals.NearTheCentres...); the plane and curvature
 // then come from PCL's own solvePlaneParameters. Keep the two in step when PCL changes. (A
 // build for a target with FMA could fuse the products into the sums differently from PCL's
 // copy; the test would tell.)

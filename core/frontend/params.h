@@ -1,8 +1,9 @@
 #pragma once
 // Parameters of the front end shared by training and recognition. All of them are stored in
 // the model file, so recognition always runs the front end the model was trained with.
-// Defaults are the seed's values (../shared/docs/ALGORITHM.md, "Recognition" 1-5), except the
-// keypoint detector on organized scenes: occluding contours instead of boundary points.
+// Defaults are the seed's values (the 2012 thesis this project implements: its recognition steps,
+// downsampling to SHOT), except the keypoint detector on organized scenes: occluding contours
+// instead of boundary points.
 #include <cmath>
 
 #include "core/gravity/gravity.h"
@@ -56,9 +57,8 @@ struct KeypointParams {
   float angle_threshold = static_cast<float>(M_PI / 2);  // largest angular gap that is still "inside"
   ContourParams contour;
   // At most one keypoint per cube of this edge (m); 0 keeps every detected point. Off by
-  // default: contours are already sparse (3,376 keypoints on tum_desk), and 2 cm cut them by
-  // 35-45% but, applied when recognising, dropped the chair AP on the two real Kinect frames
-  // from 56% to 17%.
+  // default: contours are already sparse (3,376 keypoints on tum_desk), and thinning them when
+  // recognising loses the support that chairs, thin as they are, need on real Kinect frames.
   float min_spacing = 0.0f;
 };
 

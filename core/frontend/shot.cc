@@ -164,9 +164,8 @@ inline double fastAtan2(double y, double x) {
 
 // histogram() is compiled twice, for the x86-64 baseline and for AVX2, and the CPU's features
 // pick one at run time (core/common/cpu_features.h). With AVX2 its per-point loop works on 4
-// doubles at a time instead of 2, without SSE2's register copies and three-instruction selects,
-// which took the describe stage on tum_desk (3,376 keypoints) from 28 to 21 ms of CPU time. The
-// IEEE operations per point are the same, and so are the results.
+// doubles at a time instead of 2, without SSE2's register copies and three-instruction selects.
+// The IEEE operations per point are the same, and so are the results.
 
 // PCL's createBinDistanceShape and interpolateSingleChannel (shot.hpp): each support point votes
 // for the cosine bin of its normal in its volume, shared linearly with the neighbouring cosine
@@ -348,7 +347,7 @@ Features computeShot(const Surface& surface, const std::vector<int>& keypoints, 
   if (keypoints.empty()) return features;
 
   // PCL's estimators take the radius as a double, (double)params.radius; the grid compares
-  // float squared distances with the float radius, as it did behind PCL (GridSearch).
+  // float squared distances with the float radius, as it does behind PCL's estimators (GridSearch).
   const double radius = params.radius;
   const NeighbourGrid grid(surface, params.radius);
   const size_t enough = static_cast<size_t>(std::max(params.min_neighbours, 1));

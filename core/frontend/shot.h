@@ -4,11 +4,11 @@
 // them (features/impl/shot_lrf.hpp, shot.hpp) over the same support in the same order: on the
 // frames measured, bit for bit (tests/core/shot_test.cc).
 //
-// Why not PCL's estimators: describing the 3,376 keypoints of a 640x480 Kinect frame took them
-// 84 ms on one core. They search each support three times (PCL's OpenMP LRF searches twice, SHOT once more),
-// allocate per keypoint, and call glibc's acos and atan2 and branch unpredictably per support
-// point. Here one search feeds the frame and the histogram, the angles come from a rational
-// arctangent within a few ulp of glibc's, and the per-point arithmetic vectorises.
+// Why not PCL's estimators: they search each support three times (PCL's OpenMP LRF searches
+// twice, SHOT once more), allocate per keypoint, and call glibc's acos and atan2 and branch
+// unpredictably per support point. Here one search feeds the frame and the histogram, the
+// angles come from a rational arctangent within a few ulp of glibc's, and the per-point
+// arithmetic vectorises.
 #include <vector>
 
 #include "core/common/types.h"

@@ -22,8 +22,8 @@ constexpr int kMaxPolynomialOrder = 4;
 // PCL's term order (u^a v^b for a = 0..order, b = 0..order-a), with Gaussian weights
 // exp(-d^2 / r^2) of the distance to the foot. Returns the fitted height at the foot (the
 // constant term), NaN when the fit is degenerate. The number of coefficients is a template
-// argument so that the normal equations are fixed-size matrices the compiler unrolls: at the
-// default order 2 that halved the smoothing stage's time.
+// argument so that the normal equations are fixed-size matrices the compiler unrolls: the fit
+// runs once per point and is most of the smoothing stage's time.
 template <int Coefficients>
 double fitHeightAtFoot(const XyzCloud& cloud, const std::vector<int>& neighbours, const Eigen::Vector3d& foot,
                        const Eigen::Vector3d& normal, int order, double inverse_squared_radius) {
@@ -88,10 +88,9 @@ Eigen::Vector3d projectMls(const XyzCloud& cloud, int i, const std::vector<int>&
   }
   static_assert(kMaxPolynomialOrder == 4, "fitHeightAtFoot is instantiated for every order up to the maximum");
   // A degenerate fit leaves the point on its plane, as PCL does when the coefficient is NaN. A
-  // nearly singular one can also be finite and huge: on the service tests' synthetic 640x480
-  // frame such points landed far away, and the normals stage took 17-29 s instead of 0.1 s
-  // (see NeighbourGrid::build). A height beyond the search radius is no surface through these
-  // neighbours either.
+  // nearly singular one can also be finite and huge, and would throw the point far away, where it
+  // stretches the grids of the later stages (see NeighbourGrid::build). A height beyond the search
+  // radius is no surface through these neighbours either.
   if (!std::isfinite(height) || std::abs(height) > params.radius) return foot;
   return foot + height * normal;
 }

@@ -163,10 +163,10 @@ struct Range {
 // first lands in one and found through a table over the box's blocks: no hashing and no probing,
 // a vote costs one lookup in a table that stays in the cache. A Kinect frame's box is mostly empty
 // (its keypoints lie metres apart, their votes near the surfaces): the memory follows the occupied
-// blocks, not the box. (One array over the whole box, 17 MB per category on tum_desk, was as fast
-// once warm, but the first touch of its pages took as long again as the votes.) Bins are addressed
-// relative to the box's first bin; blocks and the bins in a block run in key order, the last
-// coordinate fastest.
+// blocks, not the box. (One array over the whole box, 17 MB per category on tum_desk, would be as
+// fast once warm, but the first touch of its pages costs as much again as the votes.) Bins are
+// addressed relative to the box's first bin; blocks and the bins in a block run in key order, the
+// last coordinate fastest.
 class BinGrid {
  public:
   static constexpr int kShift = 2;  // 2^kShift bins along each axis of a block
@@ -662,7 +662,7 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
   if (candidates.empty()) return {};
 
   // Cast the votes again and look only at those in the bins of a candidate's cube. (Skipping
-  // codewords whose votes are all too short to reach a candidate saved nothing measurable in room
+  // codewords whose votes are all too short to reach a candidate would save nothing in room
   // scans: votes reach across the objects, candidates are all over the room.)
   const CandidateCubes cubes = candidateCubes(candidates, category.bin_size, impl.inverse_bin_size);
   std::vector<Support> support;

@@ -29,8 +29,7 @@ class HoughSpace {
   static constexpr size_t kMaxGridBins = size_t{1} << 24;
   // Up to this many votes, gridded bins also keep each vote's bin (4 bytes a vote, 64 MB at the
   // limit): findPeaks then reads them instead of casting every vote again, and places only the
-  // votes near a candidate. On a Kinect frame that took a quarter off its time (20 -> 15 ms on one
-  // thread), for 1 ms more voting.
+  // votes near a candidate, which costs less than casting them all again.
   static constexpr size_t kMaxKeptVoteBins = size_t{1} << 24;
 
   // Throws Error(kInvalidInput) for an activation outside the features or the vote table.

@@ -56,7 +56,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   bool no_scene_smoothing = false;
   app.add_flag("--no-scene-smoothing", no_scene_smoothing,
-               "recognise scenes without MLS smoothing, as training scans are: faster, see the README's figures");
+               "recognise scenes without MLS smoothing, as training scans are: faster, see docs/EVALUATION.md");
   try {
     app.parse(argc, argv);
     if (folders.empty() == manifest.empty()) throw CLI::ValidationError("give exactly one of --folders or --manifest");

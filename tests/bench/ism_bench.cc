@@ -70,7 +70,7 @@ int processors() {
 
 struct Config {
   std::string model_path = std::string(ISM_SOURCE_DIR) + "/models/default/furniture.ismm";
-  std::string scene_path;  // empty: the Kinect frame, or the sample scene when ../shared is absent
+  std::string scene_path;  // empty: the development data's Kinect frame, or the sample scene without it
   std::string server_binary = ISM_SERVER_BINARY;
   int recognitions = 20;  // before the server's memory is read the second time
 };

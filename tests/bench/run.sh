@@ -3,7 +3,7 @@
 #   tests/bench/run.sh [BUILD_DIR] [--skip-training] [--skip-peer] [--repetitions N]
 # BUILD_DIR (default: build) is configured as Release if it does not exist yet, and the targets
 # needed are built. Then:
-#   1. ism-bench: each stage of one 640x480 Kinect frame (../shared/data/real/kinect/tum_desk.pcd,
+#   1. ism-bench: each stage of one 640x480 Kinect frame (the development data's TUM desk frame,
 #      else the sample scene) on 1 and on all threads, the whole recognition in process and
 #      through the real ism-server over gRPC, model load, the server's memory;
 #   2. ism-train on the default model's manifest (as models/build_default.py runs it), timed once;

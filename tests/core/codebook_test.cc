@@ -224,12 +224,12 @@ TEST(DistanceKernel, AllKernelsAgreeToTheBit) {
   }
 }
 
-// Activation as it was, with Eigen's GEMM: -2 A B^T + |a|^2 + |b|^2, then per descriptor
-// std::partial_sort, or std::partition and std::sort.
+// The reference activation, written with Eigen's GEMM: -2 A B^T + |a|^2 + |b|^2, then per
+// descriptor std::partial_sort, or std::partition and std::sort.
 std::vector<Activation> gemmActivation(const DescriptorMatrix& a, const DescriptorMatrix& b, const ActivationParams& p) {
   Eigen::MatrixXf d(a.rows(), b.rows());
-  // Activation ran its GEMMs inside a parallel loop, where Eigen's GEMM takes one thread; with
-  // more it blocks the product otherwise, and rounds otherwise.
+  // One thread, the summation order the kernels reproduce: with more, Eigen blocks the product
+  // otherwise, and rounds otherwise.
   const int eigen_threads = Eigen::nbThreads();
   Eigen::setNbThreads(1);
   d.noalias() = -2.0f * a * b.transpose();

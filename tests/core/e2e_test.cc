@@ -91,7 +91,7 @@ class EndToEnd : public ::testing::Test {
     RecognitionOptions options;
     options.strategy = strategy;
     // The leave-one-out thresholds come from isolated objects scanned all round; in a scene the
-    // object stands on a floor and shows one side, and its LW score measured lower (table: 62 at
+    // object stands on a floor and shows one side, and its LW score there is lower (table: 62 at
     // its true centre against a threshold of 98; chair: 28 against 30). One fixed minimum score
     // isolates what this test checks: the pipeline puts the right peaks in the right places.
     options.min_score = kMinScore;

@@ -21,10 +21,7 @@
 namespace ism {
 namespace {
 
-using testing::boxInFrontOfWall;
-using testing::boxOnFloorBeforeWall;
-using testing::expectError;
-using testing::kVoidColumn;
+using namespace ism::testing;
 
 void expectUnitDescriptorsAndRotationFrames(const Features& features) {
   ASSERT_EQ(features.descriptors.rows(), static_cast<Eigen::Index>(features.size()));

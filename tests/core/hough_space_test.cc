@@ -14,10 +14,7 @@
 namespace ism {
 namespace {
 
-using testing::HandMadeObject;
-using testing::handMadeObject;
-using testing::modelWithVotes;
-using testing::strategy;
+using namespace ism::testing;
 
 // Two hand-made objects in one scene: 30 keypoints voting for `a`, then 20 voting for `b`,
 // each keypoint with its own codeword.

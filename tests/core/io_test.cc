@@ -181,7 +181,7 @@ TEST_F(IoTest, UnreadableFilesNameTheFile) {
 // Inputs tests/fuzz found crashing the readers (an escaping std::out_of_range from PCL, a read
 // past the point data, PCL's asserts on incomplete or non-uchar PLY colour, on a vertex list
 // property and on a header line starting with a blank, a compressed body smaller than the header's points,
-// gigabytes allocated for a PLY's stated vertex count): each is now a named error.
+// gigabytes allocated for a PLY's stated vertex count): each must be a named error.
 TEST_F(IoTest, FuzzFindingsAreRefusedWithAnError) {
   writeFileBytes(path("only_data.pcd"), "DATA");
   expectError([&] { loadCloudFile(path("only_data.pcd")); }, ErrorCode::kInvalidInput, path("only_data.pcd"));

@@ -14,9 +14,7 @@
 namespace ism {
 namespace {
 
-using testing::boxInFrontOfWall;
-using testing::expectError;
-using testing::gridPlane;
+using namespace ism::testing;
 
 TEST(Keypoints, BorderOfASquarePatchIsBoundaryInteriorIsNot) {
   const int n = 21;

@@ -9,10 +9,7 @@
 namespace ism {
 namespace {
 
-using testing::handMadeScans;
-using testing::kKeypoints;
-using testing::kModels;
-using testing::kScansPerModel;
+using namespace ism::testing;
 
 // The hand-made scans' codebook: the first scan's descriptors, one codeword per prototype (the
 // others lie ~1e-3 from theirs), so 1-NN activates codeword j for keypoint j of every scan.

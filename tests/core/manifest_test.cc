@@ -15,7 +15,7 @@ namespace fs = std::filesystem;
 class TrainingFiles : public ::testing::Test {
  protected:
   fs::path dir = fs::path(::testing::TempDir()) /
-                 ("training_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+                 ("manifest_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
   void SetUp() override { fs::create_directories(dir); }
   void TearDown() override { fs::remove_all(dir); }
   std::string write(const std::string& name, const std::string& text) {

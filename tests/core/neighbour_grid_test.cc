@@ -124,8 +124,8 @@ TEST(NeighbourGrid, ExtremeAndDegenerateInputsStayExact) {
 }
 
 TEST(NeighbourGrid, AFarOutlierDoesNotMergeTheCellsOfTheRest) {
-  // One point 100 km away used to stretch the grid so far that all others shared a few clamped
-  // cells. forEachPoint then offers each point every point of those cells as a candidate; with
+  // One point 100 km away must not stretch the grid so far that all others share a few clamped
+  // cells: forEachPoint would offer each point every point of those cells as a candidate. With
   // distinct cells a point on a 1 cm lattice sees at most 27 cells of 3 cm, i.e. 27 * 27 points.
   std::vector<Eigen::Vector3f> points;
   for (int i = 0; i < 60; ++i) {

@@ -23,8 +23,7 @@
 namespace ism {
 namespace {
 
-using testing::gridPlane;
-using testing::randomSurfacePoints;
+using namespace ism::testing;
 
 TEST(Normals, PlaneNormalsFaceTheViewpoint) {
   XyzCloud cloud = gridPlane(21, 0.005f, 1.0f);
@@ -41,12 +40,12 @@ TEST(Normals, PlaneNormalsFaceTheViewpoint) {
 }
 
 // NormalEstimator reads the neighbours' coordinates from the grid and sums PCL's covariance
-// itself, and marks the points near the centres cell by cell. What it computes has to stay
-// what it computed before, bit for bit: pcl::computePointNormal over each point's neighbour
-// list. That list's ORDER matters as much as its members, since PCL shifts the coordinates by
-// the first neighbour and sums in list order: the grid lists neighbours by cell
-// floor(p / cell) in x, then y, then z, and by index within a cell. The reference below finds
-// every set by brute force (with the grid's float distance test) and orders it so.
+// itself, and marks the points near the centres cell by cell. What it computes must be, bit for
+// bit, pcl::computePointNormal over each point's neighbour list. That list's ORDER matters as
+// much as its members, since PCL shifts the coordinates by the first neighbour and sums in list
+// order: the grid lists neighbours by cell floor(p / cell) in x, then y, then z, and by index
+// within a cell. The reference below finds every set by brute force (with the grid's float
+// distance test) and orders it so.
 class BruteForce {
  public:
   explicit BruteForce(const XyzCloud& cloud) : cloud_(cloud), order_(cloud.size()) {

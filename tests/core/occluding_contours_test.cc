@@ -25,18 +25,7 @@
 namespace ism {
 namespace {
 
-using testing::boxInFrontOfWall;
-using testing::boxOnFloorBeforeWall;
-using testing::distanceToBox;
-using testing::expectError;
-using testing::kBoxCols;
-using testing::kBoxHalf;
-using testing::kBoxHeight;
-using testing::kBoxRows;
-using testing::kHeight;
-using testing::kVoidColumn;
-using testing::kWidth;
-using testing::onBox;
+using namespace ism::testing;
 
 TEST(OccludingContours, NearSideOfJumpsAndSilhouettesAgainstNothingOnly) {
   const Scene scene = boxInFrontOfWall();
@@ -113,9 +102,9 @@ TEST(OccludingContours, KinectNoiseFiresOnTheSilhouetteOnlyWhereBoundariesFireEv
   EXPECT_GT(off_box, 10 * contour.size());
 }
 
-// detectOccludingContourPixels as it was before it took a per-row formula for the pixels whose
-// whole window has returns: every pixel scanned along the 8 directions. Its output must not
-// change, so the faster version is compared with this one.
+// The definition of occluding-contour pixels, written for clarity: every pixel scanned along the
+// 8 directions. detectOccludingContourPixels takes a per-row formula for the pixels whose whole
+// window has returns, and must give exactly these pixels.
 std::vector<int> occludingContourPixelsByScan(const Scene& scene, const ContourParams& params) {
   const int width = scene.image_width, height = scene.image_height;
   const size_t pixels = static_cast<size_t>(width) * static_cast<size_t>(height);

@@ -110,8 +110,8 @@ TEST_F(PcdReaderTest, ReadsOlderAndHandWrittenHeaders) {
 
 const std::string kXyz = "FIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n";
 
-// Each header lies about its body in a way that made PCL's reader overrun, crash or allocate
-// gigabytes (tests/fuzz/corpus/pcd/crash_* and oom_*); each is now refused, naming the problem.
+// Each header lies about its body in a way that makes PCL's reader overrun, crash or allocate
+// gigabytes (tests/fuzz/corpus/pcd/crash_* and oom_*); each must be refused, naming the problem.
 TEST_F(PcdReaderTest, RefusesHeadersThatDoNotFitTheirBody) {
   const auto refuses = [](const std::string& text, const std::string& message) {
     SCOPED_TRACE(message);

@@ -10,10 +10,7 @@
 namespace ism {
 namespace {
 
-using testing::HandMadeObject;
-using testing::handMadeObject;
-using testing::modelWithVotes;
-using testing::strategy;
+using namespace ism::testing;
 
 Scene onePointScene() {
   Scene s;

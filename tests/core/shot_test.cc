@@ -1,5 +1,5 @@
 // computeShot against PCL 1.13's SHOTLocalReferenceFrameEstimationOMP and SHOTEstimationOMP, the
-// estimators describe() ran before it, on a real frame and on a small synthetic cloud.
+// estimators it reproduces, on a real frame and on a small synthetic cloud.
 #include "core/frontend/shot.h"
 
 #include <gtest/gtest.h>
@@ -41,7 +41,7 @@ constexpr float kFrameTolerance = 1e-4f;
 // moves a descriptor by ~1e-2, a thousand times the tolerance.
 constexpr double kDescriptorTolerance = 1e-5;
 
-// SHOT at `keypoints` by PCL's estimators over `search`, dropping keypoints as describe() did:
+// SHOT at `keypoints` by PCL's estimators over `search`, dropping keypoints as computeShot does:
 // fewer than min_neighbours support points, a non-finite frame, a zero or non-finite histogram.
 struct PclShot {
   std::vector<int> described;

@@ -12,10 +12,7 @@
 namespace ism {
 namespace {
 
-using testing::handMadeScans;
-using testing::kKeypoints;
-using testing::kModels;
-using testing::kScansPerModel;
+using namespace ism::testing;
 
 // The hand-made scans have LRFs but no up: their votes are the seed's.
 TrainingParams smallParams() {

@@ -11,10 +11,7 @@
 namespace ism {
 namespace {
 
-using testing::HandMadeObject;
-using testing::handMadeObject;
-using testing::modelWithVotes;
-using testing::strategy;
+using namespace ism::testing;
 
 TEST(CastVotes, VotesRotatedBackLandOnTheCentre) {
   const Eigen::Vector3f center(1.0f, -2.0f, 0.5f);

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
-# Trains the README's PSB comparison model: the seed's own five Princeton Shape Benchmark
-# models per category (its appendix B.1, with the stand-ins named in seed_baseline.sh), both
-# codebook types. Academic-use data: the result is for measurements, never shipped.
+# Trains the PSB comparison model of docs/EVALUATION.md: the seed's own five Princeton Shape
+# Benchmark models per category (its appendix B.1, with the stand-ins named in seed_baseline.sh),
+# both codebook types. Academic-use data: the result is for measurements, never shipped.
 #   tests/eval/psb_model.sh OUTPUT.ismm [BUILD_DIR]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)

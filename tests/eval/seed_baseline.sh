@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
-# Reproduces the README's baseline tables: the seed's own Princeton Shape Benchmark models
-# (../shared/data/cad/psb), 3 training and 2 test meshes per category, 12 virtual scans each,
-# all six codebook/activation/weighting combinations. Unit-normalised PSB meshes are scaled
-# uniformly to their category's typical height (ism-train's default for meshes without a size).
+# Reproduces the seed baseline tables (docs/EVALUATION.md): the seed's own Princeton Shape
+# Benchmark models (in the development data), 3 training and 2 test meshes per category, 12
+# virtual scans each, all six codebook/activation/weighting combinations. Unit-normalised PSB
+# meshes are scaled uniformly to their category's typical height (ism-train's default for meshes
+# without a size).
 #   tests/eval/seed_baseline.sh [BUILD_DIR] [extra ism-eval options]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
