@@ -20,6 +20,7 @@
 #include "core/report/report.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "ism/v1/service.grpc.pb.h"
+#include "proto/wire/messages.h"
 
 namespace {
 
@@ -88,7 +89,7 @@ int runRecognize(const Connection& connection, const std::vector<std::string>& f
     if (!picture.empty()) {
       const std::string path = picturePath(picture, file, files.size());
       try {
-        ism::savePicture(scene.scene, ism::client::fromProto(response.result()).hypotheses, path, scene.camera);
+        ism::savePicture(scene.scene, ism::wire::resultFromProto(response.result()).hypotheses, path, scene.camera);
       } catch (const std::exception& e) {
         std::cerr << "error: " << e.what() << "\n";
         if (exit_code == 0) exit_code = kLocalFailure;

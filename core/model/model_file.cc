@@ -10,6 +10,7 @@
 
 #include "core/common/error.h"
 #include "ism/v1/model.pb.h"
+#include "proto/wire/enums.h"
 
 namespace ism {
 namespace {
@@ -42,23 +43,9 @@ void toProto(const VoteTable& table, v1::VoteTable* out) {
 }
 
 void toProto(const ActivationParams& a, v1::ActivationParams* out) {
-  out->set_strategy(a.strategy == ActivationStrategy::kKnn ? v1::ACTIVATION_STRATEGY_KNN
-                                                           : v1::ACTIVATION_STRATEGY_CUTOFF);
+  out->set_strategy(wire::toProto(a.strategy));
   out->set_k(a.k);
   out->set_cutoff(a.cutoff);
-}
-
-v1::CodebookType toProto(CodebookType t) {
-  return t == CodebookType::kGlobal ? v1::CODEBOOK_TYPE_GLOBAL : v1::CODEBOOK_TYPE_SEPARATED;
-}
-
-v1::VoteWeighting toProto(VoteWeighting w) {
-  switch (w) {
-    case VoteWeighting::kCategorization: return v1::VOTE_WEIGHTING_CATEGORIZATION;
-    case VoteWeighting::kLocalization: return v1::VOTE_WEIGHTING_LOCALIZATION;
-    case VoteWeighting::kActivation: return v1::VOTE_WEIGHTING_ACTIVATION;
-  }
-  return v1::VOTE_WEIGHTING_UNSPECIFIED;
 }
 
 // --- proto -> Model, every size checked against the others ---
@@ -118,21 +105,17 @@ class Reader {
   }
 
   ActivationStrategy strategy(int v, const std::string& where) const {
-    if (v == v1::ACTIVATION_STRATEGY_KNN) return ActivationStrategy::kKnn;
-    if (v == v1::ACTIVATION_STRATEGY_CUTOFF) return ActivationStrategy::kCutoff;
+    if (const auto strategy = wire::activationStrategyFromProto(v)) return *strategy;
     fail(where + " has unknown activation strategy " + std::to_string(v));
   }
 
   CodebookType codebookType(int v, const std::string& where) const {
-    if (v == v1::CODEBOOK_TYPE_GLOBAL) return CodebookType::kGlobal;
-    if (v == v1::CODEBOOK_TYPE_SEPARATED) return CodebookType::kSeparated;
+    if (const auto type = wire::codebookTypeFromProto(v)) return *type;
     fail(where + " has unknown codebook type " + std::to_string(v));
   }
 
   VoteWeighting weighting(int v, const std::string& where) const {
-    if (v == v1::VOTE_WEIGHTING_CATEGORIZATION) return VoteWeighting::kCategorization;
-    if (v == v1::VOTE_WEIGHTING_LOCALIZATION) return VoteWeighting::kLocalization;
-    if (v == v1::VOTE_WEIGHTING_ACTIVATION) return VoteWeighting::kActivation;
+    if (const auto weighting = wire::voteWeightingFromProto(v)) return *weighting;
     fail(where + " has unknown vote weighting " + std::to_string(v));
   }
 
@@ -286,10 +269,9 @@ std::string serializeModel(const Model& model) {
     toProto(c.own_votes, out->mutable_own_votes());
     for (const auto& [key, value] : c.thresholds) {
       auto* t = out->add_thresholds();
-      t->set_codebook(toProto(key.codebook));
-      t->set_activation(key.activation == ActivationStrategy::kKnn ? v1::ACTIVATION_STRATEGY_KNN
-                                                                   : v1::ACTIVATION_STRATEGY_CUTOFF);
-      t->set_weighting(toProto(key.weighting));
+      t->set_codebook(wire::toProto(key.codebook));
+      t->set_activation(wire::toProto(key.activation));
+      t->set_weighting(wire::toProto(key.weighting));
       t->set_value(value);
       if (const auto stats = c.threshold_stats.find(key); stats != c.threshold_stats.end()) {
         t->set_mean(stats->second.mean);

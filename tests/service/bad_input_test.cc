@@ -434,7 +434,7 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
        options([](auto* o) { o->mutable_strategy()->set_weighting(static_cast<v1::VoteWeighting>(-2)); }), invalid,
        "options.strategy.weighting -2 is not supported"},
       {"empty category name", options([](auto* o) { o->add_categories(""); }), grpc::StatusCode::NOT_FOUND,
-       "unknown category '' (the model has: dining_chair, dining_table)"},
+       "category '' is not in the model (it has: dining_chair, dining_table)"},
       {"unknown model", options([](auto* o) { o->set_model("furniture-v2"); }), grpc::StatusCode::NOT_FOUND,
        "unknown model 'furniture-v2' (loaded: default)"},
   };

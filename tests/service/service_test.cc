@@ -249,7 +249,7 @@ TEST_F(ServiceTest, EveryBadInputGetsItsStatusAndTheServerGoesOn) {
       {"unknown model", [&](auto* r) { *r->mutable_scene() = raw; r->mutable_options()->set_model("nope"); },
        grpc::StatusCode::NOT_FOUND, "unknown model 'nope' (loaded: default)"},
       {"unknown category", [&](auto* r) { *r->mutable_scene() = raw; r->mutable_options()->add_categories("spaceship"); },
-       grpc::StatusCode::NOT_FOUND, "unknown category 'spaceship'"},
+       grpc::StatusCode::NOT_FOUND, "category 'spaceship' is not in the model"},
   };
   for (const auto& c : cases) {
     v1::RecognizeRequest request;
