@@ -1,16 +1,12 @@
 #include "server/model_registry.h"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
 #include "core/model/model_file.h"
-#include "ism/v1/model.pb.h"
 
 namespace ism::server {
 namespace fs = std::filesystem;
@@ -35,35 +31,32 @@ std::vector<fs::path> modelFiles(const std::string& directory) {
 std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const std::string& path) {
   if (name.empty()) throw Error(ErrorCode::kInvalidInput, "model name is empty (path " + path + ")");
   auto start = std::chrono::steady_clock::now();
+  // Read once: the same bytes give the model, its description and its version, so they agree.
+  ModelFileContents file = parseModelFile(readFileBytes(path), path);
   auto loaded = std::make_shared<LoadedModel>();
-  // Read once: the same bytes give the model, its metadata and its version, so they agree.
-  const std::string bytes = readFileBytes(path);
-  loaded->model = parseModel(bytes, path);  // checks magic, version and CRC
-  v1::ModelFile envelope;
-  v1::ModelData data;
-  if (!envelope.ParseFromString(bytes) || !data.ParseFromString(envelope.payload())) {
-    throw Error(ErrorCode::kCorruptModel, "model file " + path + " cannot be parsed for its metadata");
-  }
+  loaded->name = name;
+  loaded->model = std::move(file.model);
+  const Model& model = loaded->model;
+  const v1::ModelData& data = file.description;
   v1::ModelInfo& info = loaded->info;
-  char version[9];
-  std::snprintf(version, sizeof version, "%08lx",
-                crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
   info.set_name(name);
   info.set_path(fs::absolute(path).string());
-  info.set_version(version);
-  info.set_format_version(envelope.format_version());
+  info.set_version(file.version);
+  info.set_format_version(file.format_version);
   *info.mutable_front_end() = data.front_end();
   *info.mutable_trained_knn() = data.trained_knn();
   *info.mutable_trained_cutoff() = data.trained_cutoff();
-  info.set_global_codebook_size(data.global_codebook().size());
-  for (const auto& category : data.categories()) {
+  info.set_global_codebook_size(model.global_codebook ? model.global_codebook->size() : 0);
+  for (size_t i = 0; i < model.categories.size(); ++i) {
+    const auto& category = data.categories(static_cast<int>(i));
+    const CategoryModel& trained = model.categories[i];
     auto* out = info.add_categories();
     out->set_name(category.name());
     out->set_bin_size(category.bin_size());
     *out->mutable_box() = category.box();
-    out->set_own_codebook_size(category.own_codebook().size());
-    out->set_global_votes(category.global_votes().vectors_size() / 3);
-    out->set_own_votes(category.own_votes().vectors_size() / 3);
+    out->set_own_codebook_size(trained.own_codebook ? trained.own_codebook->size() : 0);
+    out->set_global_votes(trained.global_votes.vectors.size());
+    out->set_own_votes(trained.own_votes.vectors.size());
     *out->mutable_thresholds() = category.thresholds();
     out->set_training_models(category.training_models());
     out->set_training_scans(category.training_scans());
@@ -73,7 +66,6 @@ std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const 
                                  std::chrono::system_clock::now().time_since_epoch())
                                  .count());
   info.set_load_ms(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-  loaded->name = name;
   return loaded;
 }
 

@@ -298,7 +298,7 @@ std::string serializeModel(const Model& model) {
   return file.SerializeAsString();
 }
 
-Model parseModel(const std::string& bytes, const std::string& source) {
+ModelFileContents parseModelFile(const std::string& bytes, const std::string& source) {
   const Reader r(source);
   v1::ModelFile file;
   if (!file.ParseFromString(bytes)) r.fail("not a model file or truncated (the ModelFile envelope does not parse)");
@@ -310,9 +310,25 @@ Model parseModel(const std::string& bytes, const std::string& source) {
   if (crc32Of(file.payload()) != file.payload_crc32()) {
     r.fail("CRC-32 mismatch (the file is truncated or damaged)");
   }
-  v1::ModelData data;
-  if (!data.ParseFromString(file.payload())) r.fail("the payload does not parse as ModelData");
-  return fromProto(data, source);
+  ModelFileContents out;
+  if (!out.description.ParseFromString(file.payload())) r.fail("the payload does not parse as ModelData");
+  out.model = fromProto(out.description, source);
+  out.format_version = file.format_version();
+  char version[9];
+  std::snprintf(version, sizeof version, "%08x", crc32Of(bytes));
+  out.version = version;
+  v1::ModelData& d = out.description;
+  if (d.has_global_codebook()) d.mutable_global_codebook()->clear_centers();
+  for (auto& category : *d.mutable_categories()) {
+    if (category.has_own_codebook()) category.mutable_own_codebook()->clear_centers();
+    category.clear_global_votes();
+    category.clear_own_votes();
+  }
+  return out;
+}
+
+Model parseModel(const std::string& bytes, const std::string& source) {
+  return std::move(parseModelFile(bytes, source).model);
 }
 
 void saveModel(const Model& model, const std::string& path) {
