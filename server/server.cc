@@ -1,0 +1,96 @@
+#include "server/server.h"
+
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
+#include <grpcpp/grpcpp.h>
+#include <grpcpp/health_check_service_interface.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <thread>
+
+#include "core/common/error.h"
+
+namespace ism::server {
+namespace {
+
+AccessParams accessParams(const ServerOptions& options) {
+  AccessParams params;
+  if (!options.token_file.empty()) params.tokens = readTokenFile(options.token_file);
+  if (!options.admin_token_file.empty()) params.admin_tokens = readTokenFile(options.admin_token_file);
+  params.max_streams_per_client = options.max_streams_per_client;
+  return params;
+}
+
+}  // namespace
+
+Server::Server(const ServerOptions& options)
+    : options_(options),
+      models_(options.model_dir),
+      metrics_(options.metrics_listen),
+      pool_(options.threads, options.threads_per_request),
+      access_(accessParams(options)) {
+  models_.loadDirectory();
+  for (const auto& model : models_.list()) {
+    spdlog::info("model {}@{}: {} categories from {} ({:.0f}ms)", model->name, model->info.version(),
+                 model->info.categories_size(), model->info.path(), model->info.load_ms());
+  }
+  if (models_.size() == 0) spdlog::warn("no *.ismm in {}: load models with LoadModel", options.model_dir);
+  metrics_.setLoadedModels(models_.size());
+  warnAboutExposure();
+  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, metrics_, options.limits}, access_);
+
+  const auto credentials = options.tls_cert.empty()
+                               ? grpc::InsecureServerCredentials()
+                               : tlsServerCredentials(options.tls_cert, options.tls_key, options.tls_client_ca);
+  grpc::EnableDefaultHealthCheckService(true);
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
+  grpc::ServerBuilder builder;
+  int port = 0;
+  builder.AddListeningPort(options.listen, credentials, &port);
+  builder.SetMaxReceiveMessageSize(options.max_message_mb * 1024 * 1024);
+  builder.SetMaxSendMessageSize(options.max_message_mb * 1024 * 1024);
+  builder.RegisterService(service_.get());
+  server_ = builder.BuildAndStart();
+  if (!server_ || port == 0) throw Error(ErrorCode::kIo, "cannot listen on " + options.listen + " (--listen)");
+  spdlog::info("listening on {} (port {}, {}{}, tokens {}), {} worker threads x {} per request, metrics {}",
+               options.listen, port, options.tls_cert.empty() ? "plain text" : "TLS",
+               options.tls_client_ca.empty() ? "" : " with client certificates",
+               access_.authEnabled() ? "required" : "off", options.threads, options.threads_per_request,
+               options.metrics_listen.empty() ? "off" : options.metrics_listen);
+}
+
+void Server::warnAboutExposure() const {
+  if (!isLoopbackAddress(options_.listen)) {
+    if (options_.tls_cert.empty()) {
+      spdlog::warn("{} is reachable from other machines without TLS: scenes{} cross the network readable by anyone",
+                   options_.listen, access_.authEnabled() ? " and tokens" : "");
+    }
+    if (!access_.authEnabled()) {
+      spdlog::warn("{} is reachable from other machines without --token-file: anyone may call every RPC",
+                   options_.listen);
+    }
+  }
+  if (access_.authEnabled() && options_.admin_token_file.empty()) {
+    spdlog::info("no --admin-token-file: LoadModel, UnloadModel and ReloadModels are refused");
+  }
+}
+
+void Server::drain() {
+  spdlog::info("draining running calls (up to {}s)", options_.drain_seconds);
+  // Health first, so load balancers stop sending new calls while the old ones finish.
+  server_->GetHealthCheckService()->SetServingStatus(false);
+  const auto drain_start = std::chrono::steady_clock::now();
+  const auto drain_end = std::chrono::system_clock::now() +
+                         std::chrono::duration_cast<std::chrono::system_clock::duration>(
+                             std::chrono::duration<double>(options_.drain_seconds));
+  // Our drain first (new calls refused UNAVAILABLE, streams ended), gRPC's once nothing runs.
+  service_->beginShutdown();
+  while (!service_->idle(std::chrono::milliseconds(100)) && std::chrono::system_clock::now() < drain_end) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  server_->Shutdown(drain_end);
+  spdlog::info("stopped after {:.0f}ms of draining",
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - drain_start).count());
+}
+
+}  // namespace ism::server
