@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "core/common/upright_box.h"
 #include "core/recognition/recognizer.h"
 #include "core/training/trainer.h"
 
@@ -95,6 +96,13 @@ struct AnnotatedScene {
   std::string cloud_path;  // "cloud" of the JSON (default NAME.pcd), next to the JSON
   std::string frame;       // the JSON's "frame": how to read the coordinates
   std::vector<GroundTruthObject> objects;
+  // Scene -> the gravity frame (z up) the boxes' sizes and yaws are given in: rows "axes_a",
+  // "axes_b", "floor_normal" when the JSON has them (a hand-levelled camera frame), else the
+  // identity (frames that are "z up").
+  Eigen::Matrix3f to_gravity = Eigen::Matrix3f::Identity();
+  // The data itself is gravity-levelled ("z up" in its frame), as a robot that knows its own pose
+  // would send it; false when up was fitted by the annotator, so the recognizer has to find it.
+  bool up_is_given = false;
 };
 
 // Throws Error(kNotFound) when the JSON or its cloud is missing, Error(kInvalidInput) naming the
@@ -112,24 +120,27 @@ CategoryMapping defaultCategoryMapping();
 // "model=gt1|gt2" sets (replaces) one entry. Throws Error(kInvalidInput) naming the text.
 void addCategoryMapping(CategoryMapping& mapping, const std::string& spec);
 
-// Normals need a sensor position. Single frames (Kinect, SUN RGB-D) have the camera at the
-// origin of their frame; fused reconstructions (ScanNet) have none, so the viewpoint is put in
-// the middle of the room at eye height: the cloud's x-y centroid, `eye_height` above the floor
-// (the 1st percentile of z), so that floors face up and walls face into the room.
+// Normals need a sensor position. A cloud file may carry it (a PCD's VIEWPOINT: the sample
+// scene and the project's synthetic scenes); single frames (Kinect, SUN RGB-D) have the camera
+// at the origin of their frame; fused reconstructions (ScanNet) have none, so the viewpoint is
+// put in the middle of the room at eye height: the cloud's x-y centroid, `eye_height` above the
+// floor (the 1st percentile of z), so that floors face up and walls face into the room.
 enum class ViewpointPolicy {
-  kAuto,            // origin when the JSON's "frame" mentions a camera, else kRoomCentre
+  kAuto,            // the file's sensor pose when it has one; else origin when the JSON's "frame"
+                    // mentions a camera; else kRoomCentre
   kOrigin,
   kRoomCentre,
 };
 ViewpointPolicy parseViewpointPolicy(const std::string& s);  // "auto", "origin", "room-centre"
-Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Cloud& cloud, ViewpointPolicy policy,
+Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Scene& scene, ViewpointPolicy policy,
                                float eye_height = 1.5f);
 
-// One hypothesis as the matching rule sees it.
+// One hypothesis as the matching rules see it.
 struct ScoredDetection {
   float score = 0;
   Eigen::Vector3f position = Eigen::Vector3f::Zero();  // centroid of the supporting keypoints
   float radius = 0;  // 1/4 of the category's maximum box edge
+  UprightBox box;    // in the scene's gravity frame
 };
 enum class MatchLabel {
   kTruePositive,
@@ -142,18 +153,35 @@ enum class MatchLabel {
 std::vector<MatchLabel> matchDetections(const std::vector<ScoredDetection>& detections,
                                         const std::vector<Eigen::Vector3f>& objects);
 
+// The 3D detection rule of SUN RGB-D and ScanNet (as VoteNet evaluates them), greedy by
+// descending score: a detection is a TP when the object its box overlaps most has IoU >= min_iou
+// and is not matched yet, else an FP. Returns is-TP flags index-aligned with `detections`.
+std::vector<bool> matchDetectionsByIou(const std::vector<ScoredDetection>& detections,
+                                       const std::vector<UprightBox>& objects, float min_iou);
+
 // VOC-style (all points) AP of ranked detections (score, is TP) against `objects` ground-truth
 // objects: area under the precision envelope over recall. NaN when there are no objects.
 double averagePrecision(std::vector<std::pair<float, bool>> ranked, int objects);
 
 // Counts of one ground-truth class (e.g. "chair"), fed by every model category mapped onto it.
+// A model category also matches ground truth of its own name (synthetic scenes use the model's
+// names).
 struct ClassScore {
   std::string name;                           // ground-truth categories joined by '|'
   std::vector<std::string> model_categories;  // model categories mapped onto it
   int objects = 0, tp = 0, fp = 0, fn = 0;
+  int scenes = 0;   // scenes scored
   double rate = 0;  // TP / (objects + FP); NaN when both are zero
   double ap = 0;    // NaN without objects
+  // 3D boxes at IoU >= 0.25 in the gravity frame: AP, and the counts of every detection.
+  double ap25 = 0;  // NaN without objects
+  int tp25 = 0, fp25 = 0;
+  std::vector<std::pair<double, double>> pr25;  // (recall, precision) down the ranking
 };
+
+// The score a class ranks its detections by: hypotheses of several model categories compete for
+// one ground-truth class, so it has to mean the same for each of them.
+float rankingScore(const Hypothesis& h);
 
 // Matches hypotheses against ground truth scene by scene and accumulates per class. Only the
 // model's category names and box statistics (maximum edge) are used.
@@ -161,17 +189,20 @@ class ClassScorer {
  public:
   ClassScorer(const Model& model, const CategoryMapping& mapping);
   // Hypotheses that failed box selection are ignored. Returns this scene's {TP, FP, FN} summed
-  // over classes; ground-truth objects of unmapped categories ("other") are ignored.
+  // over classes (the seed's rule); ground-truth objects of unmapped categories ("other") are
+  // ignored. The boxes are compared in the gravity frame of `to_gravity` (scene -> gravity).
   std::array<int, 3> addScene(const std::vector<GroundTruthObject>& objects,
-                              const std::vector<Hypothesis>& hypotheses);
+                              const std::vector<Hypothesis>& hypotheses,
+                              const Eigen::Matrix3f& to_gravity = Eigen::Matrix3f::Identity());
   std::vector<ClassScore> scores() const;
 
  private:
   struct Class {
     std::vector<std::string> gt_categories;
     std::vector<std::string> model_categories;
-    int objects = 0, tp = 0, fp = 0;
+    int objects = 0, tp = 0, fp = 0, scenes = 0, tp25 = 0, fp25 = 0;
     std::vector<std::pair<float, bool>> ranked;  // counted detections: merged FPs count once
+    std::vector<std::pair<float, bool>> ranked25;  // every detection, by 3D IoU
   };
   std::vector<Class> classes_;
   std::map<std::string, float> radius_;  // model category -> 1/4 of its maximum box edge
@@ -207,6 +238,9 @@ struct RealResult {
   std::vector<RealCombination> combinations;  // in the order of params.strategies
 };
 
+// The mean of AP@0.25 over the classes that have objects; NaN when none has.
+double meanAp25(const RealCombination& combination);
+
 // Counts accumulate over all scenes; AP ranks all hypotheses of all scenes of a class by score.
 RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedScene>& scenes,
                               const RealEvalParams& params);
@@ -217,6 +251,8 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
 // Aligned text tables for a terminal.
 std::string formatBaseline(const BaselineResult& result);
 std::string formatReal(const RealResult& result);
+// PNG bytes: the precision-recall curves (3D IoU >= 0.25) of each class with objects.
+std::string renderPrecisionRecall(const RealCombination& combination);
 // JSON documents (NaN as null).
 std::string baselineToJson(const BaselineResult& result);
 std::string realToJson(const RealResult& result);

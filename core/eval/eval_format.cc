@@ -56,6 +56,17 @@ json countJson(const CountTable& table) {
 
 }  // namespace
 
+double meanAp25(const RealCombination& combination) {
+  double sum = 0;
+  int n = 0;
+  for (const auto& k : combination.classes) {
+    if (k.objects == 0) continue;
+    sum += k.ap25;
+    ++n;
+  }
+  return n == 0 ? NAN : sum / n;
+}
+
 std::string formatBaseline(const BaselineResult& result) {
   std::ostringstream out;
   out << "Baseline on synthetic scans: " << result.categories.size() << " categories, " << result.training_scans
@@ -85,14 +96,19 @@ std::string formatReal(const RealResult& result) {
   }
   out << alignedTable(scenes);
   for (const auto& c : result.combinations) {
-    std::vector<std::vector<std::string>> rows{{"class", "model categories", "objects", "TP", "FP", "FN", "r", "AP"}};
+    std::vector<std::vector<std::string>> rows{
+        {"class", "model categories", "objects", "TP", "FP", "FN", "r", "AP", "FP/scan", "AP@0.25", "TP@0.25"}};
     for (const auto& k : c.classes) {
       std::string models;
       for (const auto& m : k.model_categories) models += (models.empty() ? "" : ",") + m;
       rows.push_back({k.name, models, std::to_string(k.objects), std::to_string(k.tp), std::to_string(k.fp),
-                      std::to_string(k.fn), percent(k.rate), percent(k.ap)});
+                      std::to_string(k.fn), percent(k.rate), percent(k.ap),
+                      fixed(k.scenes > 0 ? static_cast<double>(k.fp) / k.scenes : NAN, 1), percent(k.ap25),
+                      std::to_string(k.tp25)});
     }
-    out << "\n== " << c.strategy << "\n" << alignedTable(rows);
+    out << "\n== " << c.strategy << "\n"
+        << alignedTable(rows) << "mAP@0.25 " << percent(meanAp25(c)) << " over the classes with objects; r and FP: "
+        << "the seed's centre rule; AP@0.25: 3D boxes in the gravity frame\n";
   }
   return out.str();
 }
@@ -136,10 +152,14 @@ std::string realToJson(const RealResult& result) {
   for (const auto& c : result.combinations) {
     json classes = json::array();
     for (const auto& k : c.classes) {
+      json pr = json::array();
+      for (const auto& [recall, precision] : k.pr25) pr.push_back({recall, precision});
       classes.push_back({{"class", k.name}, {"model_categories", k.model_categories}, {"objects", k.objects},
-                         {"tp", k.tp}, {"fp", k.fp}, {"fn", k.fn}, {"rate", k.rate}, {"ap", k.ap}});
+                         {"scenes", k.scenes}, {"tp", k.tp}, {"fp", k.fp}, {"fn", k.fn}, {"rate", k.rate},
+                         {"ap", k.ap}, {"ap25", k.ap25}, {"tp25", k.tp25}, {"fp25", k.fp25},
+                         {"recall_precision25", pr}});
     }
-    combinations.push_back({{"strategy", c.strategy}, {"classes", classes}});
+    combinations.push_back({{"strategy", c.strategy}, {"classes", classes}, {"map25", meanAp25(c)}});
   }
   return json{{"scenes", scenes}, {"combinations", combinations}}.dump(2);
 }

@@ -68,6 +68,19 @@ AnnotatedScene readSceneAnnotation(const std::string& json_path) {
   if (objects == doc.end() || !objects->is_array()) {
     throw Error(ErrorCode::kInvalidInput, "ground truth " + json_path + " has no \"objects\" array");
   }
+  // A camera frame levelled by hand gives its floor-aligned axes; the boxes are along them.
+  if (doc.contains("floor_normal")) {
+    const Eigen::Vector3f up = readVector3(doc, "floor_normal", json_path).normalized();
+    Eigen::Vector3f a = doc.contains("axes_a") ? readVector3(doc, "axes_a", json_path) : Eigen::Vector3f::UnitX();
+    a = (a - up * up.dot(a)).normalized();
+    if (!up.allFinite() || !a.allFinite()) {
+      throw Error(ErrorCode::kInvalidInput, json_path + ": \"floor_normal\" and \"axes_a\" do not span a frame");
+    }
+    scene.to_gravity.row(0) = a.transpose();
+    scene.to_gravity.row(1) = up.cross(a).transpose();
+    scene.to_gravity.row(2) = up.transpose();
+  }
+  scene.up_is_given = !doc.contains("floor_normal") && lowercase(scene.frame).find("z up") != std::string::npos;
   for (size_t i = 0; i < objects->size(); ++i) {
     const json& o = (*objects)[i];
     const std::string where = json_path + ": objects[" + std::to_string(i) + "]";
@@ -139,9 +152,13 @@ ViewpointPolicy parseViewpointPolicy(const std::string& s) {
   throw Error(ErrorCode::kInvalidInput, "viewpoint policy '" + s + "' is not one of auto, origin, room-centre");
 }
 
-Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Cloud& cloud, ViewpointPolicy policy,
+Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Scene& scene, ViewpointPolicy policy,
                                float eye_height) {
+  const Cloud& cloud = *scene.cloud;
   if (policy == ViewpointPolicy::kAuto) {
+    const bool file_has_pose = !scene.sensor_origin.isZero() ||
+                               !scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity());
+    if (file_has_pose) return scene.sensor_origin;
     policy = lowercase(annotation.frame).find("camera") != std::string::npos ? ViewpointPolicy::kOrigin
                                                                             : ViewpointPolicy::kRoomCentre;
   }
@@ -194,6 +211,34 @@ std::vector<MatchLabel> matchDetections(const std::vector<ScoredDetection>& dete
   return labels;
 }
 
+std::vector<bool> matchDetectionsByIou(const std::vector<ScoredDetection>& detections,
+                                       const std::vector<UprightBox>& objects, float min_iou) {
+  std::vector<size_t> order(detections.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return detections[a].score > detections[b].score; });
+  std::vector<bool> is_tp(detections.size(), false);
+  std::vector<bool> matched(objects.size(), false);
+  for (size_t i : order) {
+    int best = -1;
+    float best_iou = 0;
+    for (size_t o = 0; o < objects.size(); ++o) {
+      const float iou = intersectionOverUnion(detections[i].box, objects[o]);
+      if (iou > best_iou) {
+        best = static_cast<int>(o);
+        best_iou = iou;
+      }
+    }
+    // As VOC and VoteNet do: a detection whose best object is taken already is a duplicate (FP),
+    // it does not fall back to a worse overlap.
+    if (best >= 0 && best_iou >= min_iou && !matched[static_cast<size_t>(best)]) {
+      matched[static_cast<size_t>(best)] = true;
+      is_tp[i] = true;
+    }
+  }
+  return is_tp;
+}
+
 double averagePrecision(std::vector<std::pair<float, bool>> ranked, int objects) {
   if (objects <= 0) return std::numeric_limits<double>::quiet_NaN();
   std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
@@ -212,6 +257,25 @@ double averagePrecision(std::vector<std::pair<float, bool>> ranked, int objects)
   return ap;
 }
 
+float rankingScore(const Hypothesis& h) { return h.relativeScore(); }
+
+namespace {
+
+// Recall-precision points down a ranking, for the precision-recall curve.
+std::vector<std::pair<double, double>> precisionRecall(std::vector<std::pair<float, bool>> ranked, int objects) {
+  std::vector<std::pair<double, double>> curve;
+  if (objects <= 0) return curve;
+  std::stable_sort(ranked.begin(), ranked.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+  int tp = 0;
+  for (size_t i = 0; i < ranked.size(); ++i) {
+    tp += ranked[i].second;
+    curve.emplace_back(static_cast<double>(tp) / objects, static_cast<double>(tp) / static_cast<double>(i + 1));
+  }
+  return curve;
+}
+
+}  // namespace
+
 ClassScorer::ClassScorer(const Model& model, const CategoryMapping& mapping) {
   for (const auto& category : model.categories) {
     radius_[category.name] = category.box.max_edge / 4;
@@ -228,18 +292,28 @@ ClassScorer::ClassScorer(const Model& model, const CategoryMapping& mapping) {
 }
 
 std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& objects,
-                                         const std::vector<Hypothesis>& hypotheses) {
+                                         const std::vector<Hypothesis>& hypotheses,
+                                         const Eigen::Matrix3f& to_gravity) {
   std::array<int, 3> scene{0, 0, 0};
   for (Class& c : classes_) {
     std::vector<Eigen::Vector3f> centres;
+    std::vector<UprightBox> boxes;
     for (const auto& o : objects) {
-      if (contains(c.gt_categories, o.category)) centres.push_back(o.center);
+      if (!contains(c.gt_categories, o.category) && !contains(c.model_categories, o.category)) continue;
+      centres.push_back(o.center);
+      boxes.push_back({to_gravity * o.center, o.size, o.yaw});
     }
     std::vector<ScoredDetection> detections;
     for (const Hypothesis& h : hypotheses) {
       if (!h.passed_selection || !contains(c.model_categories, h.category)) continue;
-      detections.push_back({h.score, h.support_centroid, radius_.at(h.category)});
+      detections.push_back({rankingScore(h), h.support_centroid, radius_.at(h.category), uprightBoxOf(h.box, to_gravity)});
     }
+    const auto by_iou = matchDetectionsByIou(detections, boxes, 0.25f);
+    for (size_t d = 0; d < detections.size(); ++d) {
+      c.ranked25.emplace_back(detections[d].score, by_iou[d]);
+      (by_iou[d] ? c.tp25 : c.fp25) += 1;
+    }
+    c.scenes += 1;
     const auto labels = matchDetections(detections, centres);
     int tp = 0, fp = 0;
     for (size_t d = 0; d < detections.size(); ++d) {
@@ -268,8 +342,13 @@ std::vector<ClassScore> ClassScorer::scores() const {
     score.tp = c.tp;
     score.fp = c.fp;
     score.fn = c.objects - c.tp;
+    score.scenes = c.scenes;
     score.rate = ratio(c.tp, c.objects + c.fp);
     score.ap = averagePrecision(c.ranked, c.objects);
+    score.ap25 = averagePrecision(c.ranked25, c.objects);
+    score.tp25 = c.tp25;
+    score.fp25 = c.fp25;
+    score.pr25 = precisionRecall(c.ranked25, c.objects);
     out.push_back(score);
   }
   return out;
@@ -289,7 +368,7 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     Scene scene = loadCloudFile(annotation.cloud_path);
     run.load_ms = millisecondsSince(start);
     run.points = scene.cloud->size();
-    run.viewpoint = sceneViewpoint(annotation, *scene.cloud, params.viewpoint, params.eye_height);
+    run.viewpoint = sceneViewpoint(annotation, scene, params.viewpoint, params.eye_height);
     scene.sensor_origin = run.viewpoint;
 
     start = std::chrono::steady_clock::now();
@@ -304,7 +383,8 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
       auto hypotheses = hypothesesForFeatures(model, front.features, params.strategies[s].strategy);
       run.recognition_ms.push_back(millisecondsSince(start));
       recognition_ms += run.recognition_ms.back();
-      result.combinations[s].scene_tp_fp_fn.push_back(scorers[s].addScene(annotation.objects, hypotheses));
+      result.combinations[s].scene_tp_fp_fn.push_back(
+          scorers[s].addScene(annotation.objects, hypotheses, annotation.to_gravity));
     }
     if (params.progress) {
       std::ostringstream line;

@@ -16,6 +16,12 @@ void writeText(const std::string& path, const std::string& text) {
   if (!out) throw ism::Error(ism::ErrorCode::kIo, "cannot write " + path);
 }
 
+void writeBytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary);
+  out << bytes;
+  if (!out) throw ism::Error(ism::ErrorCode::kIo, "cannot write " + path);
+}
+
 void progress(const std::string& line) { std::cerr << line << std::endl; }
 
 }  // namespace
@@ -76,6 +82,10 @@ int main(int argc, char** argv) {
   real->add_option("--eye-height", eye_height, "room-centre viewpoint height above the floor (m)")
       ->capture_default_str();
   real->add_option("--json", json_path, "also write the results as JSON");
+  std::string pr_curve;
+  real->add_option("--pr-curve", pr_curve,
+                   "write the precision-recall curves (3D IoU 0.25) as PNG; with several combinations, "
+                   "one file per combination with its number before the extension");
 
   CLI11_PARSE(app, argc, argv);
 
@@ -120,6 +130,14 @@ int main(int argc, char** argv) {
       auto result = ism::evaluateRealScenes(model, scenes, params);
       text = ism::formatReal(result);
       json = ism::realToJson(result);
+      for (size_t c = 0; !pr_curve.empty() && c < result.combinations.size(); ++c) {
+        std::string path = pr_curve;
+        if (result.combinations.size() > 1) {
+          const auto dot = path.rfind('.');
+          path.insert(dot == std::string::npos ? path.size() : dot, "-" + std::to_string(c + 1));
+        }
+        writeBytes(path, ism::renderPrecisionRecall(result.combinations[c]));
+      }
     }
     std::cout << text;
     if (!json_path.empty()) writeText(json_path, json);

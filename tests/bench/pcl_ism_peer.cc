@@ -462,7 +462,7 @@ int main(int argc, char** argv) {
     int pcl_failures = 0;
     for (const auto& annotation : scenes) {
       ism::Scene scene = ism::loadCloudFile(annotation.cloud_path);
-      const Eigen::Vector3f viewpoint = ism::sceneViewpoint(annotation, *scene.cloud, ism::ViewpointPolicy::kAuto);
+      const Eigen::Vector3f viewpoint = ism::sceneViewpoint(annotation, scene, ism::ViewpointPolicy::kAuto);
       scene.sensor_origin = viewpoint;
       json row = {{"scene", annotation.name}, {"points", scene.cloud->size()}, {"objects", annotation.objects.size()}};
 

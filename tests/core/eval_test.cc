@@ -167,6 +167,63 @@ TEST(EvalScorer, RateAndApOverScenesWithMergedChairCategories) {
   EXPECT_NEAR(table.ap, 0.5, 1e-9);
 }
 
+TEST(EvalMatching, ByIouTheBestOverlapDecidesAndDuplicatesAreFalsePositives) {
+  const std::vector<UprightBox> objects{{{0, 0, 0.45f}, {0.5f, 0.5f, 0.9f}, 0}, {{2, 0, 0.45f}, {0.5f, 0.5f, 0.9f}, 0}};
+  const auto detection = [](float score, Eigen::Vector3f center, Eigen::Vector3f size) {
+    ScoredDetection d;
+    d.score = score;
+    d.box = {center, size, 0};
+    return d;
+  };
+  const auto is_tp = matchDetectionsByIou(
+      {detection(0.5f, {0.05f, 0, 0.45f}, {0.5f, 0.5f, 0.9f}),   // object 0 again, lower score: duplicate
+       detection(0.9f, {0.0f, 0, 0.45f}, {0.5f, 0.5f, 0.9f}),    // object 0 exactly
+       detection(0.8f, {2.29f, 0, 0.45f}, {0.5f, 0.5f, 0.9f}),   // IoU 0.27 with object 1
+       detection(0.7f, {2.0f, 0, 0.45f}, {1.2f, 1.2f, 1.8f})},   // around object 1, IoU 0.08, and taken
+      objects, 0.25f);
+  EXPECT_EQ(is_tp, (std::vector<bool>{false, true, true, false}));
+  // IoU 0.23: a miss.
+  EXPECT_EQ(matchDetectionsByIou({detection(1, {2.31f, 0, 0.45f}, {0.5f, 0.5f, 0.9f})}, objects, 0.25f),
+            (std::vector<bool>{false}));
+}
+
+TEST(EvalScorer, BoxesAreComparedInTheGravityFrameAndModelNamesMatchTheirOwnObjects) {
+  Model model;
+  for (const char* name : {"office_chair", "couch"}) {
+    CategoryModel category;
+    category.name = name;
+    category.box.max_edge = 0.8f;
+    model.categories.push_back(category);
+  }
+  ClassScorer scorer(model, defaultCategoryMapping());
+  // A camera frame: x right, y down, z forward; up is -y.
+  const Eigen::Matrix3f to_gravity = gravityRotation({0, -1, 0});
+  // Ground truth: a chair and an object named like the model's couch category (synthetic scenes).
+  GroundTruthObject chair{"chair", {0, 0.3f, 2}, {0.5f, 0.5f, 0.9f}, 0};
+  GroundTruthObject couch{"couch", {2, 0.4f, 3}, {2.0f, 1.0f, 0.3f}, 0};  // a low bench of a couch
+  Hypothesis on_chair = hypothesis("office_chair", 3, chair.center);
+  on_chair.box = UprightBox{to_gravity * chair.center, chair.size, 0}.toScene(to_gravity);
+  Hypothesis on_couch = hypothesis("couch", 2, couch.center);
+  // The couch's box as the camera frame sees it: its height runs along -y.
+  on_couch.box.center = couch.center;
+  on_couch.box.size = {2.0f, 0.3f, 1.0f};  // x, then the camera's y (height), then z (depth)
+  scorer.addScene({chair, couch}, {on_chair, on_couch}, to_gravity);
+  const auto scores = scorer.scores();
+  ASSERT_EQ(scores.size(), 2u);
+  EXPECT_EQ(scores[0].tp25, 1);
+  EXPECT_DOUBLE_EQ(scores[0].ap25, 1.0);
+  EXPECT_EQ(scores[1].name, "sofa");
+  EXPECT_EQ(scores[1].objects, 1);
+  EXPECT_EQ(scores[1].tp, 1);
+  EXPECT_EQ(scores[1].tp25, 1);
+  ASSERT_EQ(scores[1].pr25.size(), 1u);
+  EXPECT_EQ(scores[1].pr25[0], (std::pair<double, double>{1.0, 1.0}));
+  // Without the gravity frame the camera-frame couch box stands on its side and misses.
+  ClassScorer levelled(model, defaultCategoryMapping());
+  levelled.addScene({chair, couch}, {on_chair, on_couch});
+  EXPECT_EQ(levelled.scores()[1].tp25, 0);
+}
+
 TEST(EvalMapping, SpecReplacesOneEntryAndRejectsMalformedText) {
   CategoryMapping mapping = defaultCategoryMapping();
   addCategoryMapping(mapping, "couch=sofa|couch");
@@ -196,14 +253,32 @@ TEST(EvalGroundTruth, ParsesDatasetJsonAndFindsScenes) {
   EXPECT_FLOAT_EQ(scene.objects[0].yaw, 0.5f);
   EXPECT_TRUE(scene.objects[1].size.isZero());
 
-  Cloud cloud;
+  Scene cloud;
   PointT p;
   p.x = 4;
   p.y = 2;
   p.z = 0;
-  cloud.push_back(p);
+  cloud.cloud->push_back(p);
   EXPECT_TRUE(sceneViewpoint(scene, cloud, ViewpointPolicy::kAuto).isZero());
   EXPECT_TRUE(sceneViewpoint(scene, cloud, ViewpointPolicy::kRoomCentre, 1.5f).isApprox(Eigen::Vector3f(4, 2, 1.5f)));
+  // A sensor pose that came with the cloud wins over the frame's wording.
+  cloud.sensor_origin = Eigen::Vector3f(0.4f, -2.6f, 1.3f);
+  EXPECT_TRUE(sceneViewpoint(scene, cloud, ViewpointPolicy::kAuto).isApprox(cloud.sensor_origin));
+
+  EXPECT_TRUE(scene.to_gravity.isIdentity());
+  EXPECT_FALSE(scene.up_is_given);
+
+  // A hand-levelled camera frame: the boxes are along (axes_a, axes_b, floor_normal).
+  writeText(dir.file("levelled.json"), R"({"frame": "camera optical frame. up = floor_normal", "cloud": "room.pcd",
+      "floor_normal": [0, -0.8, -0.6], "axes_a": [1, 0, 0], "axes_b": [0, -0.6, 0.8], "objects": []})");
+  const AnnotatedScene levelled = readSceneAnnotation(dir.file("levelled.json"));
+  EXPECT_TRUE((levelled.to_gravity * Eigen::Vector3f(0, -0.8f, -0.6f)).isApprox(Eigen::Vector3f::UnitZ(), 1e-5f));
+  EXPECT_TRUE((levelled.to_gravity * Eigen::Vector3f::UnitX()).isApprox(Eigen::Vector3f::UnitX(), 1e-5f));
+  EXPECT_FALSE(levelled.up_is_given);
+  writeText(dir.file("room_z.json"), R"({"frame": "z up, metres", "cloud": "room.pcd", "objects": []})");
+  EXPECT_TRUE(readSceneAnnotation(dir.file("room_z.json")).up_is_given);
+  fs::remove(dir.file("levelled.json"));
+  fs::remove(dir.file("room_z.json"));
 
   const std::vector<std::string> expected{dir.file("room.json")};
   EXPECT_EQ(findSceneAnnotations({dir.file("")}), expected);

@@ -1,0 +1,262 @@
+#include "core/gravity/gravity.h"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "core/common/error.h"
+#include "core/common/upright_box.h"
+
+namespace ism {
+namespace {
+
+struct Plane {
+  Eigen::Vector3f normal = Eigen::Vector3f::UnitZ();
+  float offset = 0;  // normal . p = offset on the plane
+  float distance(const Eigen::Vector3f& p) const { return normal.dot(p) - offset; }
+};
+
+float radians(float degrees) { return degrees * static_cast<float>(M_PI) / 180.0f; }
+
+// Up to `count` points spread over the cloud (every n-th), so that scoring a plane costs the
+// same on a 300k-point frame as on a 50k-point room sample.
+std::vector<Eigen::Vector3f> spreadSample(const std::vector<Eigen::Vector3f>& points, size_t count) {
+  if (points.size() <= count) return points;
+  std::vector<Eigen::Vector3f> out;
+  out.reserve(count);
+  const double step = static_cast<double>(points.size()) / static_cast<double>(count);
+  for (size_t i = 0; i < count; ++i) out.push_back(points[static_cast<size_t>(static_cast<double>(i) * step)]);
+  return out;
+}
+
+// The least-squares plane of the points within `distance` of `plane`, normal on the same side.
+Plane refine(const Plane& plane, const std::vector<Eigen::Vector3f>& points, float distance) {
+  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
+  size_t n = 0;
+  for (const auto& p : points) {
+    if (std::abs(plane.distance(p)) <= distance) {
+      mean += p.cast<double>();
+      ++n;
+    }
+  }
+  if (n < 3) return plane;
+  mean /= static_cast<double>(n);
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  for (const auto& p : points) {
+    if (std::abs(plane.distance(p)) > distance) continue;
+    const Eigen::Vector3d d = p.cast<double>() - mean;
+    covariance += d * d.transpose();
+  }
+  Eigen::Vector3f normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(covariance).eigenvectors().col(0).cast<float>();
+  if (normal.dot(plane.normal) < 0) normal = -normal;
+  return {normal, normal.dot(mean.cast<float>())};
+}
+
+float percentile(std::vector<float> values, float fraction) {
+  if (values.empty()) return 0;
+  const auto at = values.begin() + static_cast<long>(fraction * static_cast<float>(values.size() - 1));
+  std::nth_element(values.begin(), at, values.end());
+  return *at;
+}
+
+// The floor: among planes within `max_angle` of `prior_up` (normals turned towards it), the one
+// with most points that has almost none below it.
+std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const Eigen::Vector3f& prior_up,
+                               float max_angle, bool normal_is_prior, const GravityParams& params) {
+  if (sample.size() < 3) return std::nullopt;
+  std::mt19937 rng(params.seed);
+  std::uniform_int_distribution<size_t> pick(0, sample.size() - 1);
+  const float min_cos = std::cos(max_angle);
+  const auto min_support = static_cast<size_t>(params.min_floor_fraction * static_cast<float>(sample.size()));
+  const auto max_below = static_cast<size_t>(params.max_below_fraction * static_cast<float>(sample.size()));
+  std::optional<Plane> best;
+  size_t best_support = std::max<size_t>(min_support, 3);
+  for (int it = 0; it < params.iterations; ++it) {
+    Plane plane;
+    const Eigen::Vector3f& a = sample[pick(rng)];
+    if (normal_is_prior) {
+      // Up is known: a horizontal plane is fixed by one point.
+      plane.normal = prior_up;
+    } else {
+      const Eigen::Vector3f n = (sample[pick(rng)] - a).cross(sample[pick(rng)] - a);
+      if (!(n.norm() > 1e-9f)) continue;
+      plane.normal = n.normalized();
+      if (plane.normal.dot(prior_up) < 0) plane.normal = -plane.normal;
+      if (plane.normal.dot(prior_up) < min_cos) continue;
+    }
+    plane.offset = plane.normal.dot(a);
+    size_t support = 0, below = 0;
+    for (const auto& p : sample) {
+      const float d = plane.distance(p);
+      support += std::abs(d) <= params.inlier_distance;
+      below += d < -params.below_margin;
+    }
+    if (support > best_support && below <= max_below) {
+      best_support = support;
+      best = plane;
+    }
+  }
+  if (!best) return std::nullopt;
+  Plane refined = refine(*best, sample, params.inlier_distance);
+  if (normal_is_prior) {
+    // A given up is not second-guessed: only the floor's level is refined.
+    double level = 0;
+    size_t n = 0;
+    for (const auto& p : sample) {
+      if (std::abs(best->distance(p)) <= params.inlier_distance) {
+        level += prior_up.dot(p);
+        ++n;
+      }
+    }
+    return Plane{prior_up, static_cast<float>(level / static_cast<double>(n))};
+  }
+  return refined.normal.dot(prior_up) >= min_cos ? refined : *best;
+}
+
+// How far from a plane its points may lie: the sensor's noise grows with the square of the range
+// (NoiseParams' model of the Kinect), so a wall 4 m away is a band several centimetres thick.
+struct Tolerance {
+  Eigen::Vector3f sensor;
+  const GravityParams& params;
+  float operator()(const Eigen::Vector3f& p) const {
+    const float range = (p - sensor).norm();
+    const float sigma = 0.0012f + 0.0019f * (range - 0.4f) * (range - 0.4f);
+    return std::max(params.inlier_distance, params.noise_sigmas * sigma);
+  }
+};
+
+struct Wall {
+  Plane plane;
+  float along_lo, along_hi;    // extent of its points along the floor
+  float height_lo, height_hi;  // and along up
+};
+
+// Walls: vertical planes (through two points and up) with most support whose points span a
+// wall's height and width. A large vertical face that is not a wall (a wardrobe is, for the
+// purpose) is set aside and the search goes on.
+std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vector3f& up, const Tolerance& tolerance,
+                            const GravityParams& params) {
+  std::vector<Wall> walls;
+  std::mt19937 rng(params.seed + 1);
+  const float max_sin = std::sin(radians(params.wall_tilt_deg));
+  const size_t min_support = std::max<size_t>(50, free.size() / 50);
+  for (int attempt = 0; attempt < 2 * params.max_walls && static_cast<int>(walls.size()) < params.max_walls; ++attempt) {
+    if (free.size() < min_support) break;
+    std::uniform_int_distribution<size_t> pick(0, free.size() - 1);
+    Plane best;
+    size_t best_support = 0;
+    for (int it = 0; it < params.iterations; ++it) {
+      const Eigen::Vector3f& a = free[pick(rng)];
+      Eigen::Vector3f along = free[pick(rng)] - a;
+      along -= up * up.dot(along);
+      if (!(along.norm() > 0.05f)) continue;
+      Plane plane;
+      plane.normal = up.cross(along).normalized();
+      plane.offset = plane.normal.dot(a);
+      size_t support = 0;
+      for (const auto& p : free) support += std::abs(plane.distance(p)) <= params.inlier_distance;
+      if (support > best_support) {
+        best_support = support;
+        best = plane;
+      }
+    }
+    if (best_support < min_support) break;
+    Plane plane = refine(best, free, params.inlier_distance);
+    if (std::abs(plane.normal.dot(up)) > max_sin) plane = best;
+    const Eigen::Vector3f along = up.cross(plane.normal).normalized();
+    std::vector<float> heights, alongs;
+    std::vector<Eigen::Vector3f> rest;
+    for (const auto& p : free) {
+      const float d = std::abs(plane.distance(p));
+      if (d <= params.inlier_distance) {
+        heights.push_back(up.dot(p));
+        alongs.push_back(along.dot(p));
+      }
+      if (d > tolerance(p)) rest.push_back(p);
+    }
+    Wall wall{plane, percentile(alongs, 0.02f), percentile(alongs, 0.98f), percentile(heights, 0.02f),
+              percentile(heights, 0.98f)};
+    if (wall.height_hi - wall.height_lo >= params.wall_min_height && wall.along_hi - wall.along_lo >= params.wall_min_width) {
+      walls.push_back(wall);
+    }
+    free = std::move(rest);
+  }
+  return walls;
+}
+
+}  // namespace
+
+const char* toString(UpSource source) {
+  switch (source) {
+    case UpSource::kGiven:
+      return "given";
+    case UpSource::kFloor:
+      return "floor";
+    case UpSource::kAssumed:
+      return "assumed";
+  }
+  return "?";
+}
+
+Eigen::Matrix3f Gravity::toGravity() const { return gravityRotation(up); }
+
+GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& sensor_origin,
+                              const Eigen::Vector3f& sensor_up, const std::optional<Eigen::Vector3f>& given_up,
+                              const GravityParams& params) {
+  if (given_up && !(given_up->allFinite() && given_up->norm() > 1e-6f)) {
+    throw Error(ErrorCode::kInvalidInput, "the up vector must be finite and non-zero");
+  }
+  GravityResult result;
+  result.labels.assign(points.size(), PlaneLabel::kNone);
+  Gravity& g = result.gravity;
+  const std::vector<Eigen::Vector3f> sample = spreadSample(points, params.sample_points);
+  if (given_up) {
+    g.up = given_up->normalized();
+    g.source = UpSource::kGiven;
+  } else {
+    g.up = sensor_up.normalized();
+    g.source = UpSource::kAssumed;
+  }
+  std::optional<Plane> floor = findFloor(sample, g.up, radians(given_up ? params.given_up_tolerance_deg : params.max_tilt_deg),
+                                         given_up.has_value(), params);
+  if (floor) {
+    if (!given_up) {
+      g.up = floor->normal;
+      g.source = UpSource::kFloor;
+    }
+    g.floor_level = floor->offset;
+  }
+
+  const Tolerance tolerance{sensor_origin, params};
+  std::vector<Eigen::Vector3f> free;
+  for (const auto& p : sample) {
+    if (!g.hasFloor() || g.height(p) > tolerance(p)) free.push_back(p);
+  }
+  const std::vector<Wall> walls = findWalls(std::move(free), g.up, tolerance, params);
+  g.walls = static_cast<int>(walls.size());
+  constexpr float kMargin = 0.1f;  // a wall's points a little beyond its sampled extent
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3f& p = points[i];
+    const float tol = tolerance(p);
+    if (g.hasFloor() && std::abs(g.height(p)) <= tol) {
+      result.labels[i] = PlaneLabel::kFloor;
+      ++g.floor_points;
+      continue;
+    }
+    for (const Wall& w : walls) {
+      if (std::abs(w.plane.distance(p)) > tol) continue;
+      const float along = g.up.cross(w.plane.normal).normalized().dot(p), height = g.up.dot(p);
+      if (along < w.along_lo - kMargin || along > w.along_hi + kMargin || height < w.height_lo - kMargin ||
+          height > w.height_hi + kMargin) {
+        continue;
+      }
+      result.labels[i] = PlaneLabel::kWall;
+      ++g.wall_points;
+      break;
+    }
+  }
+  return result;
+}
+
+}  // namespace ism

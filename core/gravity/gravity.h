@@ -1,0 +1,89 @@
+#pragma once
+// The up direction of a scene, its floor, and the large planes (floor, walls) that are never
+// keypoints. Furniture stands on the floor, upright: once up and the floor are known, a
+// keypoint's height above the floor and the heading of its surface about up are what votes are
+// cast with (recognition), and floor and walls, which look alike in every room and carry no
+// furniture, stop voting at all.
+//
+// Up comes from the caller when it knows it (a robot's TF, an accelerometer, a gravity-levelled
+// room scan); otherwise it is the normal of the floor, found by RANSAC among planes near the
+// sensor's own up (the optical frame's -y) with almost no points below them. A scene without a
+// visible floor keeps the sensor's up and has no floor: heights are then unknown.
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace ism {
+
+struct GravityParams {
+  // Estimated up: the floor's normal lies within this angle of the sensor's up.
+  float max_tilt_deg = 45.0f;
+  // Given up: the floor is searched among planes within this angle of it.
+  float given_up_tolerance_deg = 10.0f;
+  // A point within this distance of a plane supports it (m) when planes are searched. Points are
+  // labelled as on a plane within the larger of this and noise_sigmas times the sensor's depth
+  // noise at their range (NoiseParams' Kinect model: 2.6 cm at 4 m).
+  float inlier_distance = 0.03f;
+  float noise_sigmas = 2.5f;
+  // The floor carries at least this fraction of the scene's points ...
+  float min_floor_fraction = 0.03f;
+  // ... and has at most this fraction more than `below_margin` under it (reconstructions and
+  // noisy frames put a few stray points below the floor; a table top has the floor below it).
+  float max_below_fraction = 0.02f;
+  float below_margin = 0.08f;
+  // A wall is a plane within wall_tilt_deg of vertical whose supporting points span at least
+  // this much in height and along the floor. A couch is as wide but lower, an office chair's back
+  // as high but narrower: no face of the seed's categories is taken for a wall. A camera looking
+  // down sees a wall's lowest metre or so.
+  float wall_min_height = 1.0f;
+  float wall_min_width = 1.5f;
+  float wall_tilt_deg = 10.0f;
+  int max_walls = 6;
+  int iterations = 300;          // RANSAC hypotheses per plane
+  size_t sample_points = 20000;  // planes are scored on this many points spread over the scene
+  uint32_t seed = 1;             // the same scene always gives the same planes
+};
+
+enum class UpSource {
+  kGiven,    // the caller's
+  kFloor,    // the normal of the floor found in the scene
+  kAssumed,  // no floor found: the sensor's up (the optical frame's -y), unchecked
+};
+const char* toString(UpSource source);
+
+struct Gravity {
+  Eigen::Vector3f up = Eigen::Vector3f::UnitZ();  // unit, scene coordinates
+  UpSource source = UpSource::kAssumed;
+  // The floor plane is { p : up . p = floor_level } when found.
+  std::optional<float> floor_level;
+  size_t floor_points = 0;  // points on the floor plane
+  size_t wall_points = 0;   // points on walls
+  int walls = 0;
+
+  bool hasFloor() const { return floor_level.has_value(); }
+  // Height of p above the floor; only meaningful when hasFloor().
+  float height(const Eigen::Vector3f& p) const { return up.dot(p) - floor_level.value_or(0.0f); }
+  // Scene -> a frame whose z is up (gravityRotation(up)).
+  Eigen::Matrix3f toGravity() const;
+};
+
+// Per point of a cloud: what large plane it lies on.
+enum class PlaneLabel : uint8_t { kNone = 0, kFloor = 1, kWall = 2 };
+
+struct GravityResult {
+  Gravity gravity;
+  std::vector<PlaneLabel> labels;  // per point of the cloud given
+};
+
+// `points` are the scene's (downsampled) points. `sensor_origin` is where the sensor was and
+// `sensor_up` its up, both in scene coordinates (its orientation applied to the optical frame's
+// -y); `given_up` the caller's. Throws Error(kInvalidInput) when given_up is not a finite,
+// non-zero vector.
+GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& sensor_origin,
+                              const Eigen::Vector3f& sensor_up, const std::optional<Eigen::Vector3f>& given_up,
+                              const GravityParams& params = {});
+
+}  // namespace ism
