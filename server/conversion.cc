@@ -112,6 +112,12 @@ Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
 }  // namespace
 
 void decodeMessage(const grpc::ByteBuffer& bytes, const std::string& what, google::protobuf::MessageLite* out) {
+  // A message of 0 bytes is valid (every field at its default), but gRPC hands it over as a
+  // buffer without slices, which its reader refuses.
+  if (bytes.Length() == 0) {
+    out->Clear();
+    return;
+  }
   grpc::ByteBuffer shared(bytes);  // shares the slices: the reader wants a mutable buffer
   grpc::ProtoBufferReader reader(&shared);
   if (!reader.status().ok() || !out->ParseFromZeroCopyStream(&reader)) {

@@ -47,14 +47,18 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     grpc::Status status;
     std::string request_id;
     try {
+      // First: a call whose caller gave up (also one whose deadline passed before its request was
+      // read, which leaves the request empty) is answered as such, never as bad input.
+      const ShouldStop stopped = callStopper(context);
+      throwIfStopped(stopped, rpc);
       Request request;
       decodeMessage(*request_bytes, std::string(rpc) + ": the request", &request);
       if constexpr (std::is_same_v<Request, v1::RecognizeRequest>) request_id = request.request_id();
       request_id = requestId(request_id);
-      // A call that waited in the queue past its deadline is not worth starting.
-      throwIfStopped(callStopper(context), rpc);
       Response response;
       work(request, &response, request_id);
+      // An answer nobody waits for any more is counted as what it is.
+      throwIfStopped(stopped, rpc);
       encodeMessage(response, response_bytes);
     } catch (...) {
       status = withDeadlineReason(context, statusFromCurrentException());
@@ -96,6 +100,7 @@ grpc::ServerUnaryReactor* RecognizerService::Recognize(grpc::CallbackServerConte
       context, "Recognize", Access::kUser, request, response,
       [this, context](const v1::RecognizeRequest& request, v1::RecognizeResponse* response,
                       const std::string& request_id) {
+        if (!request.has_scene()) throw Error(ErrorCode::kInvalidInput, "Recognize: no scene given");
         response->set_request_id(request_id);
         context_.recognize(request_id, request.scene(), request.options(), callStopper(context),
                            response->mutable_result());

@@ -261,6 +261,22 @@ TEST_F(BadInputTest, UndecodableBytesOnEveryRpc) {
   expectStillServing();
 }
 
+// A request of 0 bytes is a valid message with every field at its default: each RPC answers it
+// as it would any request without those fields, never as bytes that do not decode.
+TEST_F(BadInputTest, ARequestOfZeroBytesIsAnEmptyMessage) {
+  const std::vector<RawCase> cases{
+      {"Recognize", kService + "Recognize", "", grpc::StatusCode::INVALID_ARGUMENT, "Recognize: no scene given"},
+      {"ListModels", kService + "ListModels", "", grpc::StatusCode::OK, ""},
+      {"GetModel", kService + "GetModel", "", grpc::StatusCode::OK, ""},  // the only model
+      {"LoadModel", kService + "LoadModel", "", grpc::StatusCode::INVALID_ARGUMENT, "LoadModel: name is empty"},
+      {"UnloadModel", kService + "UnloadModel", "", grpc::StatusCode::INVALID_ARGUMENT, "UnloadModel: name is empty"},
+  };
+  for (const auto& c : cases) {
+    EXPECT_TRUE(hasStatus(rawUnary(server_->channel(), c.method, c.bytes), c.code, c.message)) << c.name;
+  }
+  expectStillServing();
+}
+
 // Above --max-message-mb gRPC refuses the message before any handler sees it.
 TEST_F(BadInputTest, OversizedMessagesOnEveryRpc) {
   const std::string oversized(kMaxMessageMb * 1024 * 1024 + 100, '\0');
@@ -679,7 +695,7 @@ TEST_F(BadInputTest, AFloodOfTinyRequestsLeavesMemoryBounded) {
          v1::RecognizeResponse response;
          return stub->Recognize(&context, v1::RecognizeRequest(), &response);
        },
-       grpc::StatusCode::INVALID_ARGUMENT, "scene has neither a cloud nor a depth image"},
+       grpc::StatusCode::INVALID_ARGUMENT, "Recognize: no scene given"},
       {[](auto* stub, const auto&) {
          grpc::ClientContext context;
          v1::RecognizeRequest request;
