@@ -39,7 +39,7 @@ FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerCont
       open_(open),
       slot_(std::move(slot)),
       stream_id_(requestId("")),
-      should_stop_(callStopper(context, &cancelled_)) {
+      should_stop_(service.stopper(context, &cancelled_)) {
   service_.metrics.streamOpened();
   spdlog::info("[{}] stream opened by {}", stream_id_, context_->peer());
   reading_ = true;
@@ -158,17 +158,23 @@ void FrameStream::processNext() {
   }
   act(actions);  // no finish possible: processing_ is still set
 
+  std::optional<v1::FrameResult> processed = process(frame, skipped);
   grpc::ByteBuffer result;
-  encodeMessage(process(frame, std::move(skipped)), &result);
+  if (processed) encodeMessage(*processed, &result);
 
   actions = {};
   {
     std::lock_guard<std::mutex> lock(mutex_);
     processing_ = false;
-    results_.push_back(std::move(result));
-    if (!writing_) {
-      writing_ = true;
-      actions.write = &results_.front();
+    if (processed) {
+      results_.push_back(std::move(result));
+      if (!writing_) {
+        writing_ = true;
+        actions.write = &results_.front();
+      }
+    } else {
+      not_processed_.push_back(frame.request.frame_id());
+      not_processed_.insert(not_processed_.end(), skipped.begin(), skipped.end());
     }
     scheduleLocked();
     finishIfDoneLocked(&actions);
@@ -176,7 +182,7 @@ void FrameStream::processNext() {
   act(actions);
 }
 
-v1::FrameResult FrameStream::process(const Frame& frame, std::vector<uint64_t> skipped) {
+std::optional<v1::FrameResult> FrameStream::process(const Frame& frame, const std::vector<uint64_t>& skipped) {
   const auto start = std::chrono::steady_clock::now();
   v1::FrameResult out;
   out.set_frame_id(frame.request.frame_id());
@@ -188,7 +194,9 @@ v1::FrameResult FrameStream::process(const Frame& frame, std::vector<uint64_t> s
     service_.recognize(stream_id_ + "/" + std::to_string(frame.request.frame_id()), frame.request.scene(),
                        frame.settings->options, should_stop_, out.mutable_result());
   } catch (...) {
-    status = withDeadlineReason(context_, statusFromCurrentException());
+    status = service_.whyStopped(context_, statusFromCurrentException());
+    // Given up at shutdown: no error result, the final status names the frame to send again.
+    if (service_.workAbandoned()) return std::nullopt;
     out.mutable_error()->set_code(status.error_code());
     out.mutable_error()->set_message(status.error_message());
     spdlog::warn("[{}/{}] frame failed: {}: {}", stream_id_, frame.request.frame_id(),
@@ -240,7 +248,7 @@ void FrameStream::finishIfDoneLocked(Actions* actions) {
   if (broken_) {
     final_status_ = {grpc::StatusCode::CANCELLED, "the client stopped receiving results"};
   } else if (cancelled_) {
-    final_status_ = withDeadlineReason(context_, {grpc::StatusCode::CANCELLED, "the client cancelled the stream"});
+    final_status_ = service_.whyStopped(context_, {grpc::StatusCode::CANCELLED, "the client cancelled the stream"});
   } else if (!ending_.ok()) {
     final_status_ = {ending_.error_code(), ending_.error_message() + "; every frame read before it was answered" +
                                                notProcessedLocked()};

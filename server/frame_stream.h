@@ -18,6 +18,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <vector>
 
@@ -86,7 +87,8 @@ class FrameStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc:
   void act(const Actions& actions);
 
   void processNext();  // on the worker pool
-  v1::FrameResult process(const Frame& frame, std::vector<uint64_t> skipped);
+  // nullopt when the server gave the frame up at shutdown.
+  std::optional<v1::FrameResult> process(const Frame& frame, const std::vector<uint64_t>& skipped);
   // The *Locked helpers expect mutex_ held and add what is to be started to `actions`.
   void resumeReadingLocked(Actions* actions);
   void scheduleLocked();

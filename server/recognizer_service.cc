@@ -10,35 +10,59 @@
 #include "server/status_mapping.h"
 
 namespace ism::server {
-namespace {
-
-// A stream refused before it started: ends at once with the reason.
-class RejectedStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
+// A call counted as open until gRPC is done with it (its status sent): a shutdown that waits for
+// no call to be open exits with every answer delivered.
+template <typename Reactor>
+class RecognizerService::Counted : public Reactor {
  public:
-  explicit RejectedStream(const grpc::Status& status) { Finish(status); }
-  void OnDone() override { delete this; }
+  explicit Counted(RecognizerService& service) : service_(service) {
+    ++service_.open_calls_;
+    service_.context_.metrics.callOpened();
+  }
+  void OnDone() override {
+    service_.touch();
+    service_.context_.metrics.callClosed();
+    --service_.open_calls_;
+    delete this;
+  }
+
+ private:
+  RecognizerService& service_;
 };
 
-}  // namespace
+class RecognizerService::UnaryCall final : public Counted<grpc::ServerUnaryReactor> {
+ public:
+  using Counted::Counted;
+};
+
+// A stream refused before it started: ends at once with the reason.
+class RecognizerService::RejectedStream final
+    : public Counted<grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>> {
+ public:
+  RejectedStream(RecognizerService& service, const grpc::Status& status) : Counted(service) { Finish(status); }
+};
+
+RecognizerService::RecognizerService(ServiceContext context, AccessControl& access)
+    : context_(context), access_(access) {
+  context_.abandoned = &abandoned_;
+}
+
+void RecognizerService::touch() {
+  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+}
 
 template <typename Request, typename Response, typename Work>
 grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* context, const char* rpc,
                                                    Access needed, const Raw* request_bytes, Raw* response_bytes,
                                                    Work work) {
-  auto* reactor = context->DefaultReactor();
-  ++running_calls_;  // before the check: a shutdown that saw none running finds this call refused
-  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+  auto* reactor = new UnaryCall(*this);  // deletes itself in OnDone
+  touch();
   if (shutting_down_) {
-    --running_calls_;  // counted as done before it is, never after: Finish lets a shutdown proceed
-    finish(context, reactor, rpc, requestId(""),
-           {grpc::StatusCode::UNAVAILABLE, "the server is shutting down: send the call again (to another server, "
-                                           "or after the restart)"},
-           0);
+    finish(context, reactor, rpc, requestId(""), refusedWhileShuttingDown(), 0);
     return reactor;
   }
   // Refused before queueing and decoding: callers without a valid token never take a worker's time.
   if (grpc::Status denied = access_.authorize(*context, rpc, needed); !denied.ok()) {
-    --running_calls_;
     finish(context, reactor, rpc, requestId(""), denied, 0);
     return reactor;
   }
@@ -49,7 +73,7 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     try {
       // First: a call whose caller gave up (also one whose deadline passed before its request was
       // read, which leaves the request empty) is answered as such, never as bad input.
-      const ShouldStop stopped = callStopper(context);
+      const ShouldStop stopped = context_.stopper(context);
       throwIfStopped(stopped, rpc);
       Request request;
       decodeMessage(*request_bytes, std::string(rpc) + ": the request", &request);
@@ -61,12 +85,9 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
       throwIfStopped(stopped, rpc);
       encodeMessage(response, response_bytes);
     } catch (...) {
-      status = withDeadlineReason(context, statusFromCurrentException());
+      status = context_.whyStopped(context, statusFromCurrentException());
     }
     if (request_id.empty()) request_id = requestId("");
-    // Before Finish: once the last call finished, the server (and this service) may be destroyed.
-    last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
-    --running_calls_;
     finish(context, reactor, rpc, request_id, status,
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   });
@@ -78,9 +99,13 @@ void RecognizerService::beginShutdown() {
   streams_.shutDown();
 }
 
+void RecognizerService::abandonRunning() { abandoned_ = true; }
+
+size_t RecognizerService::openCalls() const { return open_calls_ + streams_.size(); }
+
 bool RecognizerService::idle(std::chrono::milliseconds quiet) const {
   const auto last = std::chrono::steady_clock::time_point(std::chrono::steady_clock::duration(last_call_.load()));
-  return running_calls_ == 0 && streams_.size() == 0 && std::chrono::steady_clock::now() - last >= quiet;
+  return openCalls() == 0 && std::chrono::steady_clock::now() - last >= quiet;
 }
 
 void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor,
@@ -102,20 +127,20 @@ grpc::ServerUnaryReactor* RecognizerService::Recognize(grpc::CallbackServerConte
                       const std::string& request_id) {
         if (!request.has_scene()) throw Error(ErrorCode::kInvalidInput, "Recognize: no scene given");
         response->set_request_id(request_id);
-        context_.recognize(request_id, request.scene(), request.options(), callStopper(context),
+        context_.recognize(request_id, request.scene(), request.options(), context_.stopper(context),
                            response->mutable_result());
       });
 }
 
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* RecognizerService::StreamFrames(
     grpc::CallbackServerContext* context) {
-  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+  touch();
   std::unique_ptr<StreamSlot> slot;
   if (grpc::Status denied = access_.openStream(*context, &slot); !denied.ok()) {
     context_.metrics.recordRequest("StreamFrames", denied.error_code(), 0);
     spdlog::warn("StreamFrames from {} refused: {}: {}", context->peer(), statusCodeName(denied.error_code()),
                  denied.error_message());
-    return new RejectedStream(denied);
+    return new RejectedStream(*this, denied);  // deletes itself in OnDone
   }
   return new FrameStream(context_, context, std::move(slot), streams_);  // deletes itself in OnDone
 }

@@ -13,6 +13,9 @@
 namespace ism::server {
 namespace {
 
+// How long work given up at the end of the drain may take to notice.
+constexpr auto kAbandonGrace = std::chrono::seconds(2);
+
 AccessParams accessParams(const ServerOptions& options) {
   AccessParams params;
   if (!options.token_file.empty()) params.tokens = readTokenFile(options.token_file);
@@ -77,20 +80,29 @@ void Server::warnAboutExposure() const {
 
 void Server::drain() {
   spdlog::info("draining running calls (up to {}s)", options_.drain_seconds);
+  const auto start = std::chrono::steady_clock::now();
   // Health first, so load balancers stop sending new calls while the old ones finish.
   server_->GetHealthCheckService()->SetServingStatus(false);
-  const auto drain_start = std::chrono::steady_clock::now();
-  const auto drain_end = std::chrono::system_clock::now() +
-                         std::chrono::duration_cast<std::chrono::system_clock::duration>(
-                             std::chrono::duration<double>(options_.drain_seconds));
-  // Our drain first (new calls refused UNAVAILABLE, streams ended), gRPC's once nothing runs.
   service_->beginShutdown();
-  while (!service_->idle(std::chrono::milliseconds(100)) && std::chrono::system_clock::now() < drain_end) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  const auto drain_end = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                     std::chrono::duration<double>(options_.drain_seconds));
+  const auto waitUntil = [&](std::chrono::steady_clock::time_point end, std::chrono::milliseconds quiet) {
+    while (!service_->idle(quiet) && std::chrono::steady_clock::now() < end) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    return service_->idle(quiet);
+  };
+  if (!waitUntil(drain_end, std::chrono::milliseconds(100)) && service_->openCalls() > 0) {
+    spdlog::warn("{} calls still open after the {}s drain: stopping their work", service_->openCalls(),
+                 options_.drain_seconds);
+    service_->abandonRunning();
+    // Work polls for the stop between its steps; a step that does not end within this is cut
+    // by the exit, and its caller sees the connection close (UNAVAILABLE too).
+    waitUntil(std::chrono::steady_clock::now() + kAbandonGrace, std::chrono::milliseconds(0));
   }
-  server_->Shutdown(drain_end);
-  spdlog::info("stopped after {:.0f}ms of draining",
-               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - drain_start).count());
+  spdlog::info("stopped after {:.0f}ms of draining, {} calls still open",
+               std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count(),
+               service_->openCalls());
 }
 
 }  // namespace ism::server

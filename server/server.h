@@ -21,7 +21,9 @@ class Server {
   explicit Server(const ServerOptions& options);
 
   // After a stop signal: health says NOT_SERVING, new calls are refused UNAVAILABLE, running
-  // ones get up to drain_seconds to finish, then gRPC shuts down.
+  // ones get up to drain_seconds to finish; what still runs then is stopped and answered
+  // UNAVAILABLE. Returns when no call is open (or the little time given for that is over): the
+  // process should then exit without destroying the Server (see main.cc).
   void drain();
 
  private:

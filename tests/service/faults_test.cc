@@ -170,6 +170,60 @@ TEST(Faults, SigtermUnderLoadAnswersOrRefusesEveryCall) {
             << " " << stream_status.error_message() << "; exit " << exit_code << " after " << exit_s << " s\n";
 }
 
+// Clients that retry on UNAVAILABLE, as gRPC's retry policies do, keep calling through a SIGTERM
+// until the process is gone: every call they make ends OK or UNAVAILABLE, never CANCELLED, also
+// those still queued or running when the drain time is over and those that reach the server as
+// it stops. Four rounds, since a call racing the end is a race.
+TEST(Faults, CallsRacingTheShutdownAreRefusedUnavailable) {
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = rawDepthMessage(smallScene(0, 640, 480).depth);
+  std::map<grpc::StatusCode, int> counts;
+  std::map<std::string, int> messages;
+  std::vector<std::string> others;
+  for (int round = 0; round < 4; ++round) {
+    ServerProcess server({"--drain-seconds", "0.5"});
+    std::mutex mutex;
+    std::atomic<int> answered{0};
+    std::atomic<bool> gone{false};
+    std::vector<std::thread> clients;
+    for (int c = 0; c < 8; ++c) {
+      clients.emplace_back([&] {
+        auto stub = FurnitureRecognizer::NewStub(ownChannel(server.address()));
+        for (bool first = true; !gone; first = false) {
+          grpc::ClientContext context;
+          context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(90));
+          context.set_wait_for_ready(first);  // see SigtermUnderLoadAnswersOrRefusesEveryCall
+          v1::RecognizeResponse response;
+          const grpc::Status status = stub->Recognize(&context, request, &response);
+          if (status.ok()) ++answered;
+          std::lock_guard<std::mutex> lock(mutex);
+          ++counts[status.error_code()];
+          if (!status.ok() && status.error_code() != grpc::StatusCode::UNAVAILABLE) {
+            others.push_back(codeName(status.error_code()) + ": " + status.error_message());
+          }
+          if (!status.ok()) ++messages[status.error_message().substr(0, 48)];
+          if (status.error_code() == grpc::StatusCode::UNAVAILABLE) {
+            std::this_thread::sleep_for(std::chrono::milliseconds(1));  // a retry policy's backoff
+          }
+        }
+      });
+    }
+    const auto give_up = Clock::now() + std::chrono::seconds(60);
+    while (answered < 8 && Clock::now() < give_up) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    EXPECT_EQ(server.terminate(std::chrono::seconds(60)), 0);
+    gone = true;
+    for (auto& c : clients) c.join();
+  }
+  EXPECT_TRUE(others.empty()) << others.size() << " calls failed otherwise, first: " << others.front();
+  EXPECT_GT(counts[grpc::StatusCode::OK], 0);
+  EXPECT_GT(counts[grpc::StatusCode::UNAVAILABLE], 0);
+  // gRPC's own shutdown, which says nothing about the server going away, never ends a call: the
+  // server answers what it took itself.
+  EXPECT_EQ(messages.count("Cancelling all calls"), 0u);
+  std::cout << "calls racing four shutdowns: " << describe(counts) << "; messages:\n";
+  for (const auto& [message, n] : messages) std::cout << "  " << n << " x " << message << "\n";
+}
+
 // A closed loop of Recognize calls on the model that stays while an administrator reloads every
 // model and loads and unloads another one, again and again: not one call may fail.
 TEST(Faults, ModelReloadAndUnloadUnderLoadFailNoRequest) {
