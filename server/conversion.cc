@@ -4,7 +4,9 @@
 #include <grpcpp/impl/codegen/proto_utils.h>
 #include <grpcpp/support/proto_buffer_writer.h>
 #include <pcl/common/transforms.h>
+#include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>
@@ -109,6 +111,17 @@ Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
   }
 }
 
+// The codewords a kNN activation can choose from: the global codebook's, or the largest
+// category's own (0 when the model has no such codebook; recognition then says so).
+int largestCodebook(const Model& model, CodebookType type) {
+  if (type == CodebookType::kGlobal) return model.global_codebook ? model.global_codebook->size() : 0;
+  int largest = 0;
+  for (const auto& category : model.categories) {
+    if (category.own_codebook) largest = std::max(largest, category.own_codebook->size());
+  }
+  return largest;
+}
+
 }  // namespace
 
 void decodeMessage(const grpc::ByteBuffer& bytes, const std::string& what, google::protobuf::MessageLite* out) {
@@ -202,13 +215,24 @@ RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Mode
   if (!activation) {
     throw invalid("options.strategy.activation " + std::to_string(s.activation()) + " is not supported");
   }
+  // Beyond these bounds k and the cutoff activate nothing more, only cost more.
   if (*activation == ActivationStrategy::kKnn) {
     if (s.k() < 0) throw invalid("options.strategy.k must be >= 0, got " + std::to_string(s.k()));
+    const int codewords = largestCodebook(model, *codebook);
+    if (codewords > 0 && s.k() > codewords) {
+      throw invalid("options.strategy.k = " + std::to_string(s.k()) + " is more than the " +
+                    std::to_string(codewords) + " codewords of the model's " + toString(*codebook) + " codebook");
+    }
     out.strategy.activation = model.trained_knn;
     if (s.k() > 0) out.strategy.activation.k = s.k();
   } else {
     if (!(s.cutoff() >= 0 && std::isfinite(s.cutoff()))) {
       throw invalid("options.strategy.cutoff must be >= 0, got " + std::to_string(s.cutoff()));
+    }
+    if (s.cutoff() > kMaxDescriptorDistance) {
+      throw invalid(fmt::format("options.strategy.cutoff = {:g} is more than {:g}, the largest distance between a "
+                                "descriptor and a codeword",
+                                s.cutoff(), kMaxDescriptorDistance));
     }
     out.strategy.activation = model.trained_cutoff;
     if (s.cutoff() > 0) out.strategy.activation.cutoff = s.cutoff();

@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <iterator>
@@ -139,6 +140,30 @@ std::vector<Accumulator> perThreadRanges(size_t n, size_t min_per_thread, Body&&
 
 // Below this many keypoints per thread, starting threads costs more than the votes.
 constexpr size_t kKeypointsPerThread = 512;
+
+// A ShouldStop polled by the threads of a loop over keypoints, every few keypoints: casting
+// every vote of a scene can take seconds, and a caller that is gone should not wait for that.
+// Once it says stop, every thread leaves its range and check() throws.
+class LoopStop {
+ public:
+  static constexpr size_t kKeypointsPerPoll = 16;
+
+  explicit LoopStop(const ShouldStop& should_stop) : should_stop_(should_stop) {}
+  // For the i-th keypoint of a thread's range.
+  bool operator()(size_t i) {
+    if (stopped_.load(std::memory_order_relaxed)) return true;
+    if (!should_stop_ || i % kKeypointsPerPoll != 0 || !should_stop_()) return false;
+    stopped_ = true;
+    return true;
+  }
+  void check(const char* stage) const {
+    if (stopped_) throw Error(ErrorCode::kCancelled, std::string("stopped during ") + stage);
+  }
+
+ private:
+  const ShouldStop& should_stop_;
+  std::atomic<bool> stopped_{false};
+};
 
 // Exact floor for |v| < 2^31 without a libm call, so that the loops over a chunk vectorise.
 inline int32_t floorToInt(float v) {
@@ -469,9 +494,10 @@ struct HoughSpace::Impl {
 
 HoughSpace::HoughSpace(const Model& model, int category_index, const Features& features,
                        const std::vector<Activation>& activations, const Strategy& strategy, size_t max_grid_bins,
-                       size_t max_kept_vote_bins)
+                       size_t max_kept_vote_bins, const ShouldStop& should_stop)
     : impl_(new Impl{VoteCaster(model, category_index, features, activations, strategy), 0, std::nullopt, {}}) {
   Impl& impl = *impl_;
+  LoopStop stop(should_stop);
   const VoteCaster& caster = impl.caster;
   const float inverse_bin_size = impl.inverse_bin_size = 1.0f / caster.category().bin_size;
   if (const std::optional<GridBox> box = gridBox(caster, inverse_bin_size, max_grid_bins)) {
@@ -481,7 +507,7 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
                                                          [&](std::optional<BinGrid>& grid, size_t begin, size_t end) {
       grid.emplace(box->first, box->bins);
       VoteChunk chunk;
-      for (size_t k = begin; k < end; ++k) {
+      for (size_t k = begin; k < end && !stop(k - begin); ++k) {
         uint32_t* kept = keep_bins ? impl.vote_bins.data() + caster.firstVote(k) : nullptr;
         caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
           const ChunkCells in(votes, inverse_bin_size, *grid);
@@ -495,6 +521,7 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
         });
       }
     });
+    stop.check("voting");
     impl.grid = std::move(parts[0]);
     for (size_t t = 1; t < parts.size(); ++t) {
       for (const int32_t b : parts[t]->allocated()) {
@@ -509,13 +536,14 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
   auto parts = perThreadRanges<BinMap<BinSum>>(caster.keypoints(), kKeypointsPerThread,
                                                [&](BinMap<BinSum>& bins, size_t begin, size_t end) {
     VoteChunk chunk;
-    for (size_t k = begin; k < end; ++k) {
+    for (size_t k = begin; k < end && !stop(k - begin); ++k) {
       caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
         const ChunkBins in(votes, inverse_bin_size);
         for (uint32_t j = 0; j < votes.size; ++j) add(bins[in.key(j)], votes.weight, votes.x[j], votes.y[j], votes.z[j]);
       });
     }
   });
+  stop.check("voting");
   impl.hashed = std::move(parts[0]);
   for (size_t t = 1; t < parts.size(); ++t) {
     for (const auto& slot : parts[t].slots()) {
@@ -582,8 +610,9 @@ struct Support {
 
 }  // namespace
 
-std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
+std::vector<Hypothesis> HoughSpace::findPeaks(float threshold, const ShouldStop& should_stop) const {
   const Impl& impl = *impl_;
+  LoopStop stop(should_stop);
   const VoteCaster& caster = impl.caster;
   const CategoryModel& category = caster.category();
   const float bin_size = category.bin_size, half_edge = bin_size / 2;
@@ -679,7 +708,7 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       s.score.assign(candidates.size(), 0.0);
       s.keypoints.resize(candidates.size());
       VoteChunk chunk;
-      for (size_t k = begin; k < end; ++k) onKeypoint(s, chunk, k);
+      for (size_t k = begin; k < end && !stop(k - begin); ++k) onKeypoint(s, chunk, k);
     });
   };
   // recast, casting each keypoint's votes again: onChunk(s, votes, k) per chunk of them.
@@ -775,6 +804,8 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
       }
     });
   }
+
+  stop.check("hypothesis search");
 
   const Features& features = caster.features();
   std::vector<Hypothesis> peaks;
@@ -930,11 +961,12 @@ void recognizePlanned(const Model& model, const Plan& plan, const Features& feat
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const std::vector<Activation>& activated = activations[global ? 0 : s];
     auto start = std::chrono::steady_clock::now();
-    const HoughSpace hough(model, plan.categories[s], features, activated, strategy);
+    const HoughSpace hough(model, plan.categories[s], features, activated, strategy, HoughSpace::kMaxGridBins,
+                           HoughSpace::kMaxKeptVoteBins, options.should_stop);
     vote_ms += elapsed_ms(start);
     throwIfStopped(options.should_stop, "voting");
     start = std::chrono::steady_clock::now();
-    auto peaks = hough.findPeaks(plan.thresholds[s]);
+    auto peaks = hough.findPeaks(plan.thresholds[s], options.should_stop);
     std::move(peaks.begin(), peaks.end(), std::back_inserter(all));
     peak_ms += elapsed_ms(start);
     throwIfStopped(options.should_stop, "hypothesis search");

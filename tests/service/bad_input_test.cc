@@ -438,6 +438,16 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
          o->mutable_strategy()->set_cutoff(nan);
        }),
        invalid, "options.strategy.cutoff must be >= 0, got nan"},
+      {"k beyond the codebook", options([](auto* o) {
+         o->mutable_strategy()->set_activation(v1::ACTIVATION_STRATEGY_KNN);
+         o->mutable_strategy()->set_k(1000000000);
+       }),
+       invalid, "options.strategy.k = 1000000000 is more than the 40 codewords of the model's global codebook"},
+      {"cutoff beyond any distance", options([](auto* o) {
+         o->mutable_strategy()->set_activation(v1::ACTIVATION_STRATEGY_CUTOFF);
+         o->mutable_strategy()->set_cutoff(1e30f);
+       }),
+       invalid, "options.strategy.cutoff = 1e+30 is more than 2, the largest distance between a descriptor"},
       {"NaN min_score", options([=](auto* o) { o->set_min_score(nan); }), invalid, "options.min_score is not finite"},
       {"Inf min_score", options([=](auto* o) { o->set_min_score(inf); }), invalid, "options.min_score is not finite"},
       {"unknown codebook type",

@@ -17,6 +17,7 @@
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "proto/wire/messages.h"
 #include "tests/service/service_fixture.h"
 
 namespace ism::testing {
@@ -222,6 +223,43 @@ TEST(Faults, CallsRacingTheShutdownAreRefusedUnavailable) {
   EXPECT_EQ(messages.count("Cancelling all calls"), 0u);
   std::cout << "calls racing four shutdowns: " << describe(counts) << "; messages:\n";
   for (const auto& [message, n] : messages) std::cout << "  " << n << " x " << message << "\n";
+}
+
+// --drain-seconds 1 and a call whose work takes far longer (every codeword of the shipped model
+// voting on the sample scene): once the drain time is over the server stops the work, answers
+// the call UNAVAILABLE saying why, and exits 0.
+TEST(Faults, PastTheDrainTimeTheRunningWorkIsStoppedAndAnswered) {
+  ServerProcess server({"--models", ISM_SOURCE_DIR "/models/default", "--drain-seconds", "1"});
+  auto stub = FurnitureRecognizer::NewStub(server.channel());
+  v1::ModelInfo model;
+  {
+    grpc::ClientContext context;
+    ASSERT_TRUE(stub->GetModel(&context, {}, &model).ok());
+  }
+  // The sample scene's depth image: its front end takes a fraction of a second, the votes seconds.
+  v1::RecognizeRequest request;
+  auto* depth = request.mutable_scene()->mutable_depth();
+  depth->set_encoding(v1::DEPTH_ENCODING_PNG);
+  depth->set_data(readFileBytes(ISM_SOURCE_DIR "/models/sample/living_room_depth.png"));
+  *depth->mutable_intrinsics() = wire::intrinsicsToProto(DepthIntrinsics{});  // the virtual Kinect's
+  request.mutable_options()->mutable_strategy()->set_k(static_cast<int32_t>(model.global_codebook_size()));
+  auto running = std::async(std::launch::async, [&] {
+    grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(300));
+    v1::RecognizeResponse response;
+    return stub->Recognize(&context, request, &response);
+  });
+  for (int attempt = 0; attempt < 600 && server.metrics().find("ism_open_calls 1") == std::string::npos; ++attempt) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+  const auto signalled = Clock::now();
+  EXPECT_EQ(server.terminate(std::chrono::seconds(120)), 0);
+  const grpc::Status status = running.get();
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAVAILABLE) << status.error_message();
+  EXPECT_NE(status.error_message().find("the server shut down before this call finished"), std::string::npos)
+      << status.error_message();
+  std::cout << "exited " << std::chrono::duration<double>(Clock::now() - signalled).count()
+            << " s after SIGTERM with a 1 s drain; the call: " << status.error_message() << "\n";
 }
 
 // A closed loop of Recognize calls on the model that stays while an administrator reloads every
