@@ -72,40 +72,54 @@ std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const 
 }  // namespace
 
 void ModelRegistry::loadDirectory() {
-  for (const auto& file : modelFiles(directory_)) load(file.stem().string(), file.string());
+  std::lock_guard<std::mutex> changing(changes_);
+  for (const auto& file : modelFiles(directory_)) put(readModelFile(file.stem().string(), file.string()));
 }
 
 std::shared_ptr<const LoadedModel> ModelRegistry::load(const std::string& name, const std::string& path) {
+  std::lock_guard<std::mutex> changing(changes_);
   auto loaded = readModelFile(name, path);
-  std::lock_guard<std::mutex> lock(mutex_);
-  models_[name] = loaded;
+  unloaded_.erase(name);
+  put(loaded);
   return loaded;
 }
 
 void ModelRegistry::unload(const std::string& name) {
+  std::lock_guard<std::mutex> changing(changes_);
   std::lock_guard<std::mutex> lock(mutex_);
   if (models_.erase(name) == 0) {
     throw Error(ErrorCode::kNotFound, "model '" + name + "' is not loaded (loaded: " + loadedNames() + ")");
   }
+  unloaded_.insert(name);
 }
 
 std::vector<LoadFailure> ModelRegistry::reload() {
+  std::lock_guard<std::mutex> changing(changes_);
   std::map<std::string, std::string> sources;  // name -> path
   for (const auto& model : list()) sources[model->name] = model->info.path();
   std::vector<LoadFailure> failures;
   try {
-    for (const auto& file : modelFiles(directory_)) sources.emplace(file.stem().string(), fs::absolute(file).string());
+    for (const auto& file : modelFiles(directory_)) {
+      if (unloaded_.count(file.stem().string()) == 0) {
+        sources.emplace(file.stem().string(), fs::absolute(file).string());
+      }
+    }
   } catch (const Error& e) {
     failures.push_back({"", directory_, e.what()});
   }
   for (const auto& [name, path] : sources) {
     try {
-      load(name, path);
+      put(readModelFile(name, path));
     } catch (const Error& e) {
       failures.push_back({name, path, e.what()});
     }
   }
   return failures;
+}
+
+void ModelRegistry::put(std::shared_ptr<const LoadedModel> model) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  models_[model->name] = std::move(model);
 }
 
 std::shared_ptr<const LoadedModel> ModelRegistry::get(const std::string& name) const {

@@ -262,6 +262,54 @@ TEST(Faults, PastTheDrainTimeTheRunningWorkIsStoppedAndAnswered) {
             << " s after SIGTERM with a 1 s drain; the call: " << status.error_message() << "\n";
 }
 
+// UnloadModel racing ReloadModels, ten times: whichever comes first, a model unloaded is not
+// listed afterwards, although its file is still in the model directory.
+TEST(Faults, AnUnloadRacingAReloadStaysUnloaded) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("ism_unload_race_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  for (const std::string name : {"default", "extra"}) {
+    fs::copy_file(tinyModelDirectory() + "/default.ismm", dir / (name + ".ismm"), fs::copy_options::overwrite_existing);
+  }
+  ServerProcess server({"--models", dir.string()});
+  auto admin = FurnitureRecognizer::NewStub(server.channel());
+  const auto listed = [&] {
+    grpc::ClientContext context;
+    v1::ListModelsResponse models;
+    EXPECT_TRUE(admin->ListModels(&context, {}, &models).ok());
+    std::set<std::string> names;
+    for (const auto& m : models.models()) names.insert(m.name());
+    return names;
+  };
+  for (int trial = 0; trial < 10; ++trial) {
+    ASSERT_EQ(listed().count("extra"), 1u) << "trial " << trial;
+    auto reload = std::async(std::launch::async, [&] {
+      grpc::ClientContext context;
+      v1::ReloadModelsResponse response;
+      return FurnitureRecognizer::NewStub(server.channel())->ReloadModels(&context, {}, &response);
+    });
+    grpc::ClientContext context;
+    v1::UnloadModelRequest unload;
+    unload.set_name("extra");
+    v1::UnloadModelResponse unloaded;
+    const grpc::Status status = admin->UnloadModel(&context, unload, &unloaded);
+    ASSERT_TRUE(reload.get().ok());
+    ASSERT_TRUE(status.ok()) << status.error_message();
+    EXPECT_EQ(listed().count("extra"), 0u) << "trial " << trial << ": unloaded, yet listed after the reload";
+    // A reload alone does not bring it back either; LoadModel does.
+    grpc::ClientContext again;
+    v1::ReloadModelsResponse reloaded;
+    ASSERT_TRUE(admin->ReloadModels(&again, {}, &reloaded).ok());
+    EXPECT_EQ(listed().count("extra"), 0u) << "trial " << trial;
+    grpc::ClientContext load_context;
+    v1::LoadModelRequest load;
+    load.set_name("extra");
+    load.set_path((dir / "extra.ismm").string());
+    v1::ModelInfo info;
+    ASSERT_TRUE(admin->LoadModel(&load_context, load, &info).ok());
+  }
+  fs::remove_all(dir);
+}
+
 // A closed loop of Recognize calls on the model that stays while an administrator reloads every
 // model and loads and unloads another one, again and again: not one call may fail.
 TEST(Faults, ModelReloadAndUnloadUnderLoadFailNoRequest) {
