@@ -5,7 +5,6 @@
 #include <filesystem>
 
 #include "core/common/error.h"
-#include "core/io/depth_png.h"
 #include "core/model/model_file.h"
 
 namespace ism::server {
@@ -27,12 +26,13 @@ std::vector<fs::path> modelFiles(const std::string& directory) {
   return files;
 }
 
-// Reads a model file into a LoadedModel without registering it.
-std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const std::string& path) {
+}  // namespace
+
+std::shared_ptr<const LoadedModel> ModelRegistry::readModel(const std::string& name, const std::string& path) const {
   if (name.empty()) throw Error(ErrorCode::kInvalidInput, "model name is empty (path " + path + ")");
   auto start = std::chrono::steady_clock::now();
   // Read once: the same bytes give the model, its description and its version, so they agree.
-  ModelFileContents file = parseModelFile(readFileBytes(path), path);
+  ModelFileContents file = readModelFile(path, max_file_bytes_);
   auto loaded = std::make_shared<LoadedModel>();
   loaded->name = name;
   loaded->model = std::move(file.model);
@@ -69,16 +69,30 @@ std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const 
   return loaded;
 }
 
-}  // namespace
+std::string ModelRegistry::pathInDirectory(const std::string& path) const {
+  if (directory_.empty()) {
+    throw Error(ErrorCode::kInvalidInput, "LoadModel: the server has no model folder (--models) to load from");
+  }
+  fs::path root = fs::absolute(directory_).lexically_normal();
+  if (root.filename().empty()) root = root.parent_path();  // a trailing '/'
+  const fs::path resolved = (fs::path(path).is_absolute() ? fs::path(path) : root / path).lexically_normal();
+  const fs::path inside = resolved.lexically_relative(root);
+  if (inside.empty() || inside == "." || *inside.begin() == "..") {
+    throw Error(ErrorCode::kInvalidInput, "LoadModel: path '" + path + "' is not in the model folder " +
+                                              root.string() + ": only files there are loaded");
+  }
+  return resolved.string();
+}
 
 void ModelRegistry::loadDirectory() {
   std::lock_guard<std::mutex> changing(changes_);
-  for (const auto& file : modelFiles(directory_)) put(readModelFile(file.stem().string(), file.string()));
+  for (const auto& file : modelFiles(directory_)) put(readModel(file.stem().string(), file.string()));
 }
 
 std::shared_ptr<const LoadedModel> ModelRegistry::load(const std::string& name, const std::string& path) {
+  const std::string file = pathInDirectory(path);  // before anything on disk is touched
   std::lock_guard<std::mutex> changing(changes_);
-  auto loaded = readModelFile(name, path);
+  auto loaded = readModel(name, file);
   unloaded_.erase(name);
   put(loaded);
   return loaded;
@@ -109,7 +123,7 @@ std::vector<LoadFailure> ModelRegistry::reload() {
   }
   for (const auto& [name, path] : sources) {
     try {
-      put(readModelFile(name, path));
+      put(readModel(name, path));
     } catch (const Error& e) {
       failures.push_back({name, path, e.what()});
     }

@@ -33,14 +33,20 @@ struct LoadFailure {
 
 class ModelRegistry {
  public:
-  // `directory` is where ReloadModels looks for new *.ismm files (may be empty: none).
-  explicit ModelRegistry(std::string directory) : directory_(std::move(directory)) {}
+  static constexpr size_t kDefaultMaxFileBytes = size_t{256} << 20;
+
+  // `directory` holds the model files: loadDirectory() and reload() read its *.ismm, load() only
+  // files in it (may be empty: none). Files larger than `max_file_bytes` are refused.
+  explicit ModelRegistry(std::string directory, size_t max_file_bytes = kDefaultMaxFileBytes)
+      : directory_(std::move(directory)), max_file_bytes_(max_file_bytes) {}
 
   // Loads every *.ismm of the directory, name = file stem. Throws on the first bad file: a
   // server must not start with part of its models silently missing.
   void loadDirectory();
 
-  // Reads the file and then swaps it in under `name`. Throws ism::Error (file, version, CRC).
+  // Reads the file and then swaps it in under `name`. `path` is relative to the directory or
+  // absolute, and must lie inside it (a caller may not read other files of the server). Throws
+  // ism::Error (outside the directory, not a regular file, too large, version, CRC).
   std::shared_ptr<const LoadedModel> load(const std::string& name, const std::string& path);
   // Error(kNotFound) when no such model is loaded. The model stays unloaded until load() names
   // it again (or the server restarts), even when its file is in the directory: reload() does not
@@ -58,10 +64,15 @@ class ModelRegistry {
   size_t size() const;
 
  private:
+  // Reads a model file into a LoadedModel without registering it.
+  std::shared_ptr<const LoadedModel> readModel(const std::string& name, const std::string& path) const;
+  // `path` resolved against the directory; Error(kInvalidInput) when it leads out of it.
+  std::string pathInDirectory(const std::string& path) const;
   void put(std::shared_ptr<const LoadedModel> model);
   std::string loadedNames() const;  // caller holds mutex_
 
   std::string directory_;
+  size_t max_file_bytes_;
   std::mutex changes_;  // held through each change, file reads included
   std::set<std::string> unloaded_;  // by unload(), until load() names them again
   mutable std::mutex mutex_;  // guards models_ only

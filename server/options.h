@@ -15,6 +15,7 @@ struct ServerOptions {
   int threads = 1;             // recognitions at once (default: the cores)
   int threads_per_request = 0; // OpenMP threads of one recognition; 0: cores / threads, at least 1
   int max_message_mb = 64;     // largest request or response
+  size_t max_model_mb = 256;   // largest model file read
   InputLimits limits;
   std::string metrics_listen = "0.0.0.0:9464";  // empty: no /metrics
   double drain_seconds = 10;   // on SIGTERM, how long running calls may take to finish

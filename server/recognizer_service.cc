@@ -53,8 +53,8 @@ void RecognizerService::touch() {
 
 template <typename Request, typename Response, typename Work>
 grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* context, const char* rpc,
-                                                   Access needed, const Raw* request_bytes, Raw* response_bytes,
-                                                   Work work) {
+                                                   Access needed, RunsOn runs_on, const Raw* request_bytes,
+                                                   Raw* response_bytes, Work work) {
   auto* reactor = new UnaryCall(*this);  // deletes itself in OnDone
   touch();
   if (shutting_down_) {
@@ -66,7 +66,7 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     finish(context, reactor, rpc, requestId(""), denied, 0);
     return reactor;
   }
-  context_.pool.submit([this, context, reactor, rpc, request_bytes, response_bytes, work = std::move(work)]() mutable {
+  auto call = [this, context, reactor, rpc, needed, request_bytes, response_bytes, work = std::move(work)]() mutable {
     const auto start = std::chrono::steady_clock::now();
     grpc::Status status;
     std::string request_id;
@@ -81,8 +81,9 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
       request_id = requestId(request_id);
       Response response;
       work(request, &response, request_id);
-      // An answer nobody waits for any more is counted as what it is.
-      throwIfStopped(stopped, rpc);
+      // An answer nobody waits for any more is counted as what it is (a change to the models
+      // has happened, though: it is reported as done).
+      if (needed != Access::kAdmin) throwIfStopped(stopped, rpc);
       encodeMessage(response, response_bytes);
     } catch (...) {
       status = context_.whyStopped(context, statusFromCurrentException());
@@ -90,7 +91,18 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     if (request_id.empty()) request_id = requestId("");
     finish(context, reactor, rpc, request_id, status,
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  });
+  };
+  switch (runs_on) {
+    case RunsOn::kCallbackThread:
+      call();
+      break;
+    case RunsOn::kWorkers:
+      context_.pool.submit(std::move(call));
+      break;
+    case RunsOn::kAdminThread:
+      context_.admin_pool.submit(std::move(call));
+      break;
+  }
   return reactor;
 }
 
@@ -122,7 +134,7 @@ void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::Serve
 grpc::ServerUnaryReactor* RecognizerService::Recognize(grpc::CallbackServerContext* context, const Raw* request,
                                                        Raw* response) {
   return unary<v1::RecognizeRequest, v1::RecognizeResponse>(
-      context, "Recognize", Access::kUser, request, response,
+      context, "Recognize", Access::kUser, RunsOn::kWorkers, request, response,
       [this, context](const v1::RecognizeRequest& request, v1::RecognizeResponse* response,
                       const std::string& request_id) {
         if (!request.has_scene()) throw Error(ErrorCode::kInvalidInput, "Recognize: no scene given");
@@ -148,7 +160,7 @@ grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* RecognizerService::
 grpc::ServerUnaryReactor* RecognizerService::ListModels(grpc::CallbackServerContext* context, const Raw* request,
                                                         Raw* response) {
   return unary<v1::ListModelsRequest, v1::ListModelsResponse>(
-      context, "ListModels", Access::kUser, request, response,
+      context, "ListModels", Access::kUser, RunsOn::kCallbackThread, request, response,
       [this](const v1::ListModelsRequest&, v1::ListModelsResponse* response, const std::string&) {
         for (const auto& model : context_.models.list()) *response->add_models() = model->info;
       });
@@ -157,7 +169,7 @@ grpc::ServerUnaryReactor* RecognizerService::ListModels(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* RecognizerService::GetModel(grpc::CallbackServerContext* context, const Raw* request,
                                                       Raw* response) {
   return unary<v1::GetModelRequest, v1::ModelInfo>(
-      context, "GetModel", Access::kUser, request, response,
+      context, "GetModel", Access::kUser, RunsOn::kCallbackThread, request, response,
       [this](const v1::GetModelRequest& request, v1::ModelInfo* response, const std::string&) {
         *response = context_.models.get(request.name())->info;
       });
@@ -166,7 +178,7 @@ grpc::ServerUnaryReactor* RecognizerService::GetModel(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerContext* context, const Raw* request,
                                                        Raw* response) {
   return unary<v1::LoadModelRequest, v1::ModelInfo>(
-      context, "LoadModel", Access::kAdmin, request, response,
+      context, "LoadModel", Access::kAdmin, RunsOn::kAdminThread, request, response,
       [this](const v1::LoadModelRequest& request, v1::ModelInfo* response, const std::string& request_id) {
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: name is empty");
         if (request.path().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: path is empty");
@@ -180,7 +192,7 @@ grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerContext* context, const Raw* request,
                                                          Raw* response) {
   return unary<v1::UnloadModelRequest, v1::UnloadModelResponse>(
-      context, "UnloadModel", Access::kAdmin, request, response,
+      context, "UnloadModel", Access::kAdmin, RunsOn::kAdminThread, request, response,
       [this](const v1::UnloadModelRequest& request, v1::UnloadModelResponse*, const std::string& request_id) {
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "UnloadModel: name is empty");
         context_.models.unload(request.name());
@@ -192,7 +204,7 @@ grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerContext* context, const Raw* request,
                                                           Raw* response) {
   return unary<v1::ReloadModelsRequest, v1::ReloadModelsResponse>(
-      context, "ReloadModels", Access::kAdmin, request, response,
+      context, "ReloadModels", Access::kAdmin, RunsOn::kAdminThread, request, response,
       [this](const v1::ReloadModelsRequest&, v1::ReloadModelsResponse* response, const std::string& request_id) {
         for (const auto& failure : context_.models.reload()) {
           auto* out = response->add_failures();

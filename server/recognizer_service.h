@@ -53,12 +53,17 @@ class RecognizerService final : public RawFurnitureRecognizer {
   bool idle(std::chrono::milliseconds quiet) const;
 
  private:
-  // Checks the caller's token, then on the pool decodes the request, runs
+  // Where a unary call's work runs. Recognitions take the workers; changes to the models (file
+  // reads) take a thread of their own, so that they never hold up a recognition nor wait for
+  // one; a lookup in the model map is quick enough for gRPC's own thread.
+  enum class RunsOn { kCallbackThread, kWorkers, kAdminThread };
+
+  // Checks the caller's token, then where `runs_on` says decodes the request, runs
   // `work(request, &response, request_id)` and encodes the response; maps what it throws,
   // records metrics, logs failures.
   template <typename Request, typename Response, typename Work>
   grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* rpc, Access needed,
-                                  const Raw* request_bytes, Raw* response_bytes, Work work);
+                                  RunsOn runs_on, const Raw* request_bytes, Raw* response_bytes, Work work);
   void finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor, const char* rpc,
               const std::string& request_id, const grpc::Status& status, double seconds);
 

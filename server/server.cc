@@ -28,7 +28,7 @@ AccessParams accessParams(const ServerOptions& options) {
 
 Server::Server(const ServerOptions& options)
     : options_(options),
-      models_(options.model_dir),
+      models_(options.model_dir, options.max_model_mb << 20),
       metrics_(options.metrics_listen),
       pool_(options.threads, options.threads_per_request),
       access_(accessParams(options)) {
@@ -40,7 +40,7 @@ Server::Server(const ServerOptions& options)
   if (models_.size() == 0) spdlog::warn("no *.ismm in {}: load models with LoadModel", options.model_dir);
   metrics_.setLoadedModels(models_.size());
   warnAboutExposure();
-  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, metrics_, options.limits}, access_);
+  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, admin_pool_, metrics_, options.limits}, access_);
 
   const auto credentials = options.tls_cert.empty()
                                ? grpc::InsecureServerCredentials()

@@ -35,6 +35,7 @@ class Server {
   ModelRegistry models_;
   Metrics metrics_;
   WorkerPool pool_;
+  WorkerPool admin_pool_{1, 1};
   AccessControl access_;
   std::unique_ptr<RecognizerService> service_;
   std::unique_ptr<grpc::Server> server_;

@@ -17,7 +17,8 @@ namespace ism::server {
 
 struct ServiceContext {
   ModelRegistry& models;
-  WorkerPool& pool;
+  WorkerPool& pool;        // recognitions
+  WorkerPool& admin_pool;  // LoadModel, UnloadModel, ReloadModels
   Metrics& metrics;
   InputLimits limits;
   // Set once the drain time is over: the work still running is given up (may be null).

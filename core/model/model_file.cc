@@ -1,8 +1,14 @@
 #include "core/model/model_file.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <zlib.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <set>
@@ -302,7 +308,8 @@ ModelFileContents parseModelFile(const std::string& bytes, const std::string& so
   const Reader r(source);
   v1::ModelFile file;
   if (!file.ParseFromString(bytes)) r.fail("not a model file or truncated (the ModelFile envelope does not parse)");
-  if (file.magic() != kMagic) r.fail("wrong magic '" + file.magic().substr(0, 32) + "', expected '" + kMagic + "'");
+  // What the file holds instead is not echoed: it may be any file the server can read.
+  if (file.magic() != kMagic) r.fail(std::string("wrong magic: not a model file (they start with '") + kMagic + "')");
   if (file.format_version() == 0 || file.format_version() > kModelFormatVersion) {
     r.fail("format version " + std::to_string(file.format_version()) + " is not supported (this build reads 1.." +
            std::to_string(kModelFormatVersion) + ")");
@@ -329,6 +336,38 @@ ModelFileContents parseModelFile(const std::string& bytes, const std::string& so
 
 Model parseModel(const std::string& bytes, const std::string& source) {
   return std::move(parseModelFile(bytes, source).model);
+}
+
+ModelFileContents readModelFile(const std::string& path, size_t max_bytes) {
+  struct File {
+    int fd;
+    ~File() {
+      if (fd >= 0) ::close(fd);
+    }
+  };
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; fstat then refuses it.
+  const File file{::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC)};
+  struct stat status {};
+  if (file.fd < 0 || ::fstat(file.fd, &status) != 0 || !S_ISREG(status.st_mode)) {
+    throw Error(ErrorCode::kNotFound, path + ": not a readable regular file");
+  }
+  const Error too_large(ErrorCode::kResourceExhausted,
+                        path + ": larger than the " + std::to_string(max_bytes) + " bytes a model file may have here");
+  if (static_cast<uint64_t>(status.st_size) > max_bytes) throw too_large;
+  // One byte more than the limit allows tells a file that grew past it while being read.
+  std::string bytes(std::min<uint64_t>(static_cast<uint64_t>(status.st_size), max_bytes) + 1, '\0');
+  size_t size = 0;
+  while (size < bytes.size()) {
+    const ssize_t n = ::read(file.fd, bytes.data() + size, bytes.size() - size);
+    if (n == 0) break;
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(ErrorCode::kIo, path + ": read failed: " + std::strerror(errno));
+    size += static_cast<size_t>(n);
+    if (size == bytes.size() && size <= max_bytes) bytes.resize(std::min(max_bytes + 1, 2 * bytes.size()));
+  }
+  if (size > max_bytes) throw too_large;
+  bytes.resize(size);
+  return parseModelFile(bytes, path);
 }
 
 void saveModel(const Model& model, const std::string& path) {

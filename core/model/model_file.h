@@ -27,5 +27,9 @@ struct ModelFileContents {
   v1::ModelData description;
 };
 ModelFileContents parseModelFile(const std::string& bytes, const std::string& source);
+// parseModelFile of the file at `path`, which must be a regular file of at most `max_bytes`:
+// anything else (a directory, a FIFO, a device such as /dev/zero) is refused before a byte is
+// read, with one message whether or not the path exists, and so is a larger file.
+ModelFileContents readModelFile(const std::string& path, size_t max_bytes);
 
 }  // namespace ism

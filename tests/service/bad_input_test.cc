@@ -4,6 +4,7 @@
 // must get its status code and a message naming what is wrong; afterwards the server still
 // answers, and the flood leaves its resident memory bounded.
 #include <arpa/inet.h>
+#include <sys/stat.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <gtest/gtest.h>
 #include <zlib.h>
@@ -623,19 +624,31 @@ TEST_F(BadInputTest, EveryFrameReadBeforeABadMessageIsAnswered) {
   expectStillServing();
 }
 
+// Bad LoadModel requests, with a model folder of the test's own: files that are not models, and
+// paths that are not regular files of that folder, none of which may block or answer with what a
+// file holds.
 TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("ism_bad_input_" + std::to_string(getpid()));
-  fs::create_directories(dir / "a_directory.ismm");
+  fs::create_directories(dir);
   const std::string model = readFileBytes(tinyModelDirectory() + "/default.ismm");
+  writeFileBytes((dir / "default.ismm").string(), model);
+  ServerProcess server({"--models", dir.string(), "--max-model-mb", "1"});
+  fs::create_directories(dir / "a_directory.ismm");
   writeFileBytes((dir / "truncated.ismm").string(), model.substr(0, model.size() / 2));
   writeFileBytes((dir / "garbage.ismm").string(), std::string("\x00\x01\x02 this is no model", 21));
   writeFileBytes((dir / "empty.ismm").string(), "");
+  writeFileBytes((dir / "secret.ismm").string(), "SECRET-API-KEY-0123456789abcdef!");
+  writeFileBytes((dir / "large.ismm").string(), std::string((1 << 20) + 1, 'x'));
   std::string damaged = model;
   damaged[damaged.size() / 2] ^= 0x5a;
   writeFileBytes((dir / "damaged.ismm").string(), damaged);
+  ASSERT_EQ(mkfifo((dir / "fifo.ismm").c_str(), 0600), 0);
+  fs::create_symlink("/dev/zero", dir / "zero.ismm");
   auto path = [&](const char* name) { return (dir / name).string(); };
-  auto s = stub();
+  auto s = FurnitureRecognizer::NewStub(server.channel());
   const auto failed = grpc::StatusCode::FAILED_PRECONDITION;
+  const auto invalid = grpc::StatusCode::INVALID_ARGUMENT;
+  const auto not_found = grpc::StatusCode::NOT_FOUND;
 
   struct LoadCase {
     std::string name, path;
@@ -643,25 +656,51 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
     std::string message;
   };
   const std::string unparsable = ": not a model file or truncated (the ModelFile envelope does not parse)";
+  const std::string unreadable = ": not a readable regular file";
+  const std::string outside = "is not in the model folder " + dir.string() + ": only files there are loaded";
   const std::vector<LoadCase> loads{
-      {"", path("garbage.ismm"), grpc::StatusCode::INVALID_ARGUMENT, "LoadModel: name is empty"},
-      {"other", "", grpc::StatusCode::INVALID_ARGUMENT, "LoadModel: path is empty"},
+      {"", path("garbage.ismm"), invalid, "LoadModel: name is empty"},
+      {"other", "", invalid, "LoadModel: path is empty"},
       {"other", path("truncated.ismm"), failed, path("truncated.ismm") + unparsable},
-      {"other", path("garbage.ismm"), failed, path("garbage.ismm") + unparsable},
-      {"other", path("empty.ismm"), failed, path("empty.ismm") + ": wrong magic '', expected 'ISM-MODEL'"},
+      {"other", "garbage.ismm", failed, path("garbage.ismm") + unparsable},  // relative to the folder
+      {"other", path("empty.ismm"), failed, path("empty.ismm") + ": wrong magic: not a model file"},
       {"other", path("damaged.ismm"), failed,
        path("damaged.ismm") + ": CRC-32 mismatch (the file is truncated or damaged)"},
-      {"other", path("a_directory.ismm"), failed, path("a_directory.ismm") + ": is a directory, not a file"},
+      {"other", path("large.ismm"), grpc::StatusCode::RESOURCE_EXHAUSTED,
+       path("large.ismm") + ": larger than the 1048576 bytes a model file may have here"},
+      // Not regular files: refused before a byte is read (a FIFO would block, /dev/zero never end).
+      {"other", path("a_directory.ismm"), not_found, path("a_directory.ismm") + unreadable},
+      {"other", path("fifo.ismm"), not_found, path("fifo.ismm") + unreadable},
+      {"other", path("zero.ismm"), not_found, path("zero.ismm") + unreadable},
+      {"other", path("absent.ismm"), not_found, path("absent.ismm") + unreadable},
+      // Outside the folder: the same answer whether the file exists or not.
+      {"other", "/dev/zero", invalid, "LoadModel: path '/dev/zero' " + outside},
+      {"other", "/etc/passwd", invalid, "LoadModel: path '/etc/passwd' " + outside},
+      {"other", "/etc/no-such-file", invalid, "LoadModel: path '/etc/no-such-file' " + outside},
+      {"other", "../default.ismm", invalid, "LoadModel: path '../default.ismm' " + outside},
+      {"other", path("../x/../default.ismm"), invalid, outside},
       // The loaded default must survive a failed replacement.
       {"default", path("truncated.ismm"), failed, path("truncated.ismm") + unparsable},
   };
   for (const auto& c : loads) {
     grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
     v1::LoadModelRequest request;
     request.set_name(c.name);
     request.set_path(c.path);
     v1::ModelInfo info;
     EXPECT_TRUE(hasStatus(s->LoadModel(&context, request, &info), c.code, c.message)) << c.name << " " << c.path;
+  }
+  {
+    // What a file holds is never echoed.
+    grpc::ClientContext context;
+    v1::LoadModelRequest request;
+    request.set_name("other");
+    request.set_path(path("secret.ismm"));
+    v1::ModelInfo info;
+    const grpc::Status status = s->LoadModel(&context, request, &info);
+    EXPECT_EQ(status.error_code(), failed);
+    EXPECT_EQ(status.error_message().find("SECRET"), std::string::npos) << status.error_message();
   }
   {
     grpc::ClientContext context;
@@ -683,9 +722,13 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
   ASSERT_TRUE(s->ListModels(&context, {}, &models).ok());
   ASSERT_EQ(models.models_size(), 1);
   EXPECT_EQ(models.models(0).name(), "default");
-  EXPECT_EQ(models.models(0).path(), fs::absolute(tinyModelDirectory() + "/default.ismm").string());
+  EXPECT_EQ(models.models(0).path(), path("default.ismm"));
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = *raw_;
+  grpc::ClientContext recognize_context;
+  v1::RecognizeResponse response;
+  EXPECT_TRUE(s->Recognize(&recognize_context, request, &response).ok());
   fs::remove_all(dir);
-  expectStillServing();
 }
 
 // Thousands of tiny requests, good and bad, from many threads at once: each gets its own

@@ -423,7 +423,7 @@ TEST(Faults, ACorruptModelFileIsRefusedAndTheOldModelServes) {
       {std::string("\x00\x01garbage, not a model", 23),
        "not a model file or truncated (the ModelFile envelope does not parse)"},
       {damaged, "CRC-32 mismatch (the file is truncated or damaged)"},
-      {std::string(), "wrong magic '', expected 'ISM-MODEL'"},
+      {std::string(), "wrong magic: not a model file (they start with 'ISM-MODEL')"},
   };
   for (const auto& [bytes, reason] : corruptions) {
     SCOPED_TRACE(reason + ", " + std::to_string(bytes.size()) + " bytes");
