@@ -14,7 +14,7 @@
 #include <string_view>
 
 #include "core/common/error.h"
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 
 namespace ism::server {
 

@@ -12,6 +12,7 @@
 
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "proto/wire/enums.h"
 #include "proto/wire/messages.h"
 

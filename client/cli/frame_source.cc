@@ -8,7 +8,7 @@
 #include <stdexcept>
 #include <vector>
 
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "proto/wire/messages.h"
 
 namespace ism::client {

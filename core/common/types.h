@@ -15,6 +15,8 @@ namespace ism {
 
 using PointT = pcl::PointXYZRGB;
 using Cloud = pcl::PointCloud<PointT>;
+// Points without colour or normals: the downsampled and smoothed scene the front end works on.
+using XyzCloud = pcl::PointCloud<pcl::PointXYZ>;
 // Downsampled points with their normals: the search surface of SHOT and of the boundary test.
 using Surface = pcl::PointCloud<pcl::PointNormal>;
 

@@ -16,6 +16,7 @@
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "core/io/pcd_reader.h"
 
 namespace ism {

@@ -18,7 +18,4 @@ struct DepthPng {
 DepthPng decodeDepthPng16(const std::string& bytes, const std::string& source);
 std::string encodeDepthPng16(const DepthPng& image);
 
-std::string readFileBytes(const std::string& path);  // Error(kNotFound / kIo) naming the file
-void writeFileBytes(const std::string& path, const std::string& bytes);
-
 }  // namespace ism

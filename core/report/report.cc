@@ -9,7 +9,7 @@
 
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 
 namespace ism {
 namespace {

@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 
 namespace ism {
 namespace {

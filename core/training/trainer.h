@@ -1,6 +1,7 @@
 #pragma once
 // Training: meshes -> virtual scans -> front end -> codebook(s) -> votes -> leave-one-out
-// thresholds and box statistics -> Model.
+// thresholds and box statistics -> Model. The training set comes from manifest.h; the votes
+// and the thresholds have files of their own (votes.h, leave_one_out.h).
 #include <functional>
 #include <map>
 #include <string>
@@ -8,15 +9,9 @@
 
 #include "core/model/model.h"
 #include "core/scanner/scanner.h"
+#include "core/training/manifest.h"
 
 namespace ism {
-
-struct TrainingMesh {
-  std::string category;
-  std::string path;
-  MeshPlacement placement;
-  std::string credit;  // creator and licence, stored in the model's provenance
-};
 
 struct TrainingParams {
   FrontEndParams front_end;  // smoothing is stored for scenes; training scans are not smoothed
@@ -61,12 +56,5 @@ Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<s
                      const TrainingParams& params);
 
 Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
-
-// Manifest: TSV with header "category path [width_m depth_m height_m up rotation credit]".
-std::vector<TrainingMesh> readManifest(const std::string& path);
-// Folders: ROOT/<category>/*.{obj,off,ply}, sizes from defaultCategorySize().
-std::vector<TrainingMesh> meshesFromFolders(const std::string& root);
-// Typical real size (w, d, h in m) of a category, for CAD meshes normalised to a unit cube.
-Eigen::Vector3f defaultCategorySize(const std::string& category);
 
 }  // namespace ism

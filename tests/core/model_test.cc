@@ -7,6 +7,7 @@
 #include <zlib.h>
 
 #include "core/common/error.h"
+#include "tests/common/expect_error.h"
 #include "ism/v1/model.pb.h"
 
 namespace ism {
@@ -180,6 +181,63 @@ TEST_F(ModelFileTest, MissingFileIsNotFound) {
     EXPECT_EQ(e.code(), ErrorCode::kNotFound);
     EXPECT_NE(std::string(e.what()).find(".absent"), std::string::npos);
   }
+}
+
+using testing::expectError;
+
+Model modelWithOneCategory() {
+  Model model;
+  CategoryModel chair;
+  chair.name = "chair";
+  chair.bin_size = 0.1f;
+  model.categories.push_back(chair);
+  return model;
+}
+
+TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
+  Model model = modelWithOneCategory();
+  EXPECT_EQ(model.front_end.keypoints.method, KeypointMethod::kAuto) << "new models default to kAuto";
+  KeypointParams& k = model.front_end.keypoints;
+  k.method = KeypointMethod::kOccludingContour;
+  k.contour.window = 3;
+  k.contour.min_jump = 0.04f;
+  k.contour.relative_jump = 0.09f;
+  k.contour.max_gap = 25;
+  k.min_spacing = 0.02f;
+  const std::string bytes = serializeModel(model);
+  const KeypointParams loaded = parseModel(bytes, "new.ismm").front_end.keypoints;
+  EXPECT_EQ(loaded.method, KeypointMethod::kOccludingContour);
+  EXPECT_EQ(loaded.contour.window, 3);
+  EXPECT_EQ(loaded.contour.min_jump, 0.04f);
+  EXPECT_EQ(loaded.contour.relative_jump, 0.09f);
+  EXPECT_EQ(loaded.contour.max_gap, 25);
+  EXPECT_EQ(loaded.min_spacing, 0.02f);
+  for (KeypointMethod method : {KeypointMethod::kAuto, KeypointMethod::kBoundary}) {
+    k.method = method;
+    EXPECT_EQ(parseModel(serializeModel(model), "new.ismm").front_end.keypoints.method, method);
+  }
+
+  // A file written before the keypoint fields existed: its payload has none of them.
+  v1::ModelFile file;
+  ASSERT_TRUE(file.ParseFromString(bytes));
+  v1::ModelData data;
+  ASSERT_TRUE(data.ParseFromString(file.payload()));
+  auto* fe = data.mutable_front_end();
+  fe->clear_keypoint_method(), fe->clear_contour_window(), fe->clear_contour_min_jump();
+  fe->clear_contour_relative_jump(), fe->clear_contour_max_gap(), fe->clear_keypoint_min_spacing();
+  const auto resealed = [&file](const v1::ModelData& payload) {
+    file.set_payload(payload.SerializeAsString());
+    file.set_payload_crc32(static_cast<uint32_t>(
+        crc32(0L, reinterpret_cast<const Bytef*>(file.payload().data()), static_cast<uInt>(file.payload().size()))));
+    return file.SerializeAsString();
+  };
+  const KeypointParams old = parseModel(resealed(data), "old.ismm").front_end.keypoints;
+  EXPECT_EQ(old.method, KeypointMethod::kBoundary);
+  EXPECT_EQ(old.min_spacing, 0.0f);
+
+  fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);  // contour fields still unset
+  expectError([&] { parseModel(resealed(data), "broken.ismm"); }, ErrorCode::kCorruptModel,
+              "contour parameters are invalid");
 }
 
 }  // namespace

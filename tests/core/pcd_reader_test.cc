@@ -11,7 +11,7 @@
 
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "tests/common/expect_error.h"
 
 namespace ism {

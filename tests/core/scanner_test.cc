@@ -9,6 +9,7 @@
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "core/scanner/scanner.h"
 #include "tests/common/synthetic_furniture.h"
 

@@ -13,6 +13,7 @@
 #include "core/common/types.h"
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 
 namespace ism::fuzz {
 

@@ -21,7 +21,7 @@
 #include <mutex>
 #include <thread>
 
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "tests/service/service_fixture.h"
 

@@ -7,7 +7,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/io/cloud_io.h"
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "tests/service/service_fixture.h"
 
 namespace ism::testing {

@@ -15,7 +15,7 @@
 #include <thread>
 
 #include "core/io/cloud_io.h"
-#include "core/io/depth_png.h"
+#include "core/io/file_bytes.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "proto/wire/messages.h"
 #include "tests/service/service_fixture.h"

@@ -4,59 +4,18 @@
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
-#include <fstream>
 
 #include "core/common/error.h"
 #include "core/model/model_file.h"
-#include "core/recognition/recognizer.h"
+#include "tests/common/hand_made_scans.h"
 
 namespace ism {
 namespace {
 
-namespace fs = std::filesystem;
-
-constexpr int kKeypoints = 12;  // per scan, one per descriptor prototype
-constexpr int kModels = 3;
-constexpr int kScansPerModel = 4;
-
-// Hand-made scans with exactly known leave-one-out answers: keypoint j of every scan of a
-// category has the same descriptor prototype and the same pose relative to the object, only
-// the whole object moves and turns between scans. Then codeword j holds identical votes, and a
-// held-out scan's keypoint j gets (kModels - 1) * kScansPerModel CW votes, all at its centre.
-// Model `odd_model` (if any) has the same descriptors but another keypoint geometry, as a
-// dissimilar training model would: its votes miss the other models' centres and theirs miss its.
-std::vector<TrainingScan> handMadeScans(const std::string& category, uint32_t seed, int odd_model = -1) {
-  std::srand(seed);
-  DescriptorMatrix prototypes = DescriptorMatrix::Random(kKeypoints, 16);
-  prototypes.rowwise().normalize();
-  std::vector<Eigen::Vector3f> offsets, odd_offsets;
-  std::vector<Eigen::Matrix3f> lrfs;
-  for (int j = 0; j < kKeypoints; ++j) {
-    offsets.push_back(0.3f * Eigen::Vector3f::Random());
-    odd_offsets.push_back(offsets.back() + Eigen::Vector3f(0.5f, 0, 0));
-    lrfs.push_back(Eigen::Quaternionf::UnitRandom().toRotationMatrix());
-  }
-  std::vector<TrainingScan> scans;
-  for (int m = 0; m < kModels; ++m) {
-    for (int s = 0; s < kScansPerModel; ++s) {
-      TrainingScan scan;
-      scan.category = category;
-      scan.model_index = m;
-      scan.object_center = 2.0f * Eigen::Vector3f::Random();
-      const Eigen::Matrix3f turn = Eigen::AngleAxisf(0.4f * s + m, Eigen::Vector3f::UnitZ()).toRotationMatrix();
-      scan.features.descriptors = prototypes + 1e-3f * DescriptorMatrix::Random(kKeypoints, 16);
-      for (int j = 0; j < kKeypoints; ++j) {
-        const auto& offset = (m == odd_model ? odd_offsets : offsets)[static_cast<size_t>(j)];
-        scan.features.positions.push_back(scan.object_center + turn * offset);
-        scan.features.lrfs.push_back(lrfs[static_cast<size_t>(j)] * turn.transpose());
-      }
-      scan.keypoint_box = fitOrientedBox(scan.features.positions);
-      scans.push_back(std::move(scan));
-    }
-  }
-  return scans;
-}
+using testing::handMadeScans;
+using testing::kKeypoints;
+using testing::kModels;
+using testing::kScansPerModel;
 
 TrainingParams smallParams() {
   TrainingParams p;
@@ -154,68 +113,6 @@ TEST(TrainFromScans, NeedsTwoModelsPerCategory) {
   for (auto& s : scans) s.model_index = 0;
   EXPECT_THROW(trainFromScans(scans, {"stool"}, smallParams()), Error);
   EXPECT_THROW(trainFromScans(handMadeScans("stool", 1), {"desk"}, smallParams()), Error);
-}
-
-class TrainingFiles : public ::testing::Test {
- protected:
-  fs::path dir = fs::path(::testing::TempDir()) /
-                 ("training_test_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-  void SetUp() override { fs::create_directories(dir); }
-  void TearDown() override { fs::remove_all(dir); }
-  std::string write(const std::string& name, const std::string& text) {
-    fs::create_directories((dir / name).parent_path());
-    std::ofstream(dir / name) << text;
-    return (dir / name).string();
-  }
-};
-
-TEST_F(TrainingFiles, ReadsAManifest) {
-  const std::string path = write("m.tsv",
-                                 "category\tpath\twidth_m\tdepth_m\theight_m\tup\trotation\tcredit\n"
-                                 "couch\tsofa.obj\t2.0\t0.9\t0.8\tz\t-1 0 0 0 1 0 0 0 -1\tsomeone, CC-BY\n"
-                                 "# a comment\n"
-                                 "dining_chair\t/abs/chair.off\n");
-  const auto meshes = readManifest(path);
-  ASSERT_EQ(meshes.size(), 2u);
-  EXPECT_EQ(meshes[0].category, "couch");
-  EXPECT_EQ(meshes[0].path, (dir / "sofa.obj").string());
-  EXPECT_TRUE(meshes[0].placement.size.isApprox(Eigen::Vector3f(2.0f, 0.9f, 0.8f)));
-  EXPECT_EQ(meshes[0].placement.up, UpAxis::kZ);
-  EXPECT_EQ(meshes[0].placement.pre_rotation(0, 0), -1.0f);
-  EXPECT_EQ(meshes[0].credit, "someone, CC-BY");
-  EXPECT_EQ(meshes[1].path, "/abs/chair.off");
-  EXPECT_EQ(meshes[1].placement.up, UpAxis::kY);
-  EXPECT_TRUE(meshes[1].placement.uniform);  // no size given: typical height, own proportions
-  EXPECT_EQ(meshes[1].placement.size.z(), defaultCategorySize("dining_chair").z());
-}
-
-TEST_F(TrainingFiles, ManifestErrorsNameTheLine) {
-  const std::string path = write("bad.tsv", "category\tpath\theight_m\ncouch\ta.obj\t0.8\ncouch\tb.obj\ttall\n");
-  try {
-    readManifest(path);
-    FAIL() << "no exception";
-  } catch (const Error& e) {
-    EXPECT_EQ(e.code(), ErrorCode::kInvalidInput);
-    EXPECT_NE(std::string(e.what()).find("line 3"), std::string::npos) << e.what();
-    EXPECT_NE(std::string(e.what()).find("'tall'"), std::string::npos) << e.what();
-  }
-  EXPECT_THROW(readManifest(write("nocat.tsv", "path\nx.obj\n")), Error);
-  EXPECT_THROW(readManifest((dir / "absent.tsv").string()), Error);
-}
-
-TEST_F(TrainingFiles, FindsMeshesInCategoryFolders) {
-  write("couch/b.obj", "");
-  write("couch/a.OFF", "");
-  write("couch/notes.txt", "");
-  write("dining_table/t.ply", "");
-  const auto meshes = meshesFromFolders(dir.string());
-  ASSERT_EQ(meshes.size(), 3u);
-  EXPECT_EQ(meshes[0].category, "couch");
-  EXPECT_EQ(fs::path(meshes[0].path).filename(), "a.OFF");
-  EXPECT_EQ(meshes[2].category, "dining_table");
-  EXPECT_EQ(meshes[2].placement.size.z(), defaultCategorySize("dining_table").z());
-  write("spaceship/s.obj", "");
-  EXPECT_THROW(meshesFromFolders(dir.string()), Error);  // no size known for it
 }
 
 TEST(TrainingDefaults, BinSizesFollowTheSeed) {

@@ -1,0 +1,97 @@
+#include "core/frontend/keypoints.h"
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <set>
+#include <vector>
+
+#include "core/frontend/downsample.h"
+#include "core/frontend/occluding_contours.h"
+#include "tests/common/expect_error.h"
+#include "tests/common/frontend_scenes.h"
+
+namespace ism {
+namespace {
+
+using testing::boxInFrontOfWall;
+using testing::expectError;
+using testing::gridPlane;
+
+TEST(Keypoints, BorderOfASquarePatchIsBoundaryInteriorIsNot) {
+  const int n = 21;
+  const auto surface = estimateNormals(gridPlane(n, 0.01f, 1.0f), NormalParams{}, Eigen::Vector3f::Zero());
+  ASSERT_EQ(surface->size(), static_cast<size_t>(n * n));
+  const auto keypoints = detectBoundaryKeypoints(*surface, KeypointParams{});
+  const std::set<int> boundary(keypoints.begin(), keypoints.end());
+  for (int i = 0; i < n; ++i) {
+    for (int j = 0; j < n; ++j) {
+      const int ring = std::min({i, j, n - 1 - i, n - 1 - j});  // steps from the border
+      if (ring == 0) {
+        EXPECT_TRUE(boundary.count(i * n + j)) << "border point " << i << "," << j;
+      } else {
+        EXPECT_FALSE(boundary.count(i * n + j)) << "interior point " << i << "," << j;
+      }
+    }
+  }
+}
+
+TEST(Keypoints, UnorganizedInputFallsBackToTheBoundaryTest) {
+  const Scene organized = boxInFrontOfWall();
+  Scene unorganized = organized;
+  unorganized.pixel_index.clear();
+  unorganized.image_width = unorganized.image_height = 0;
+  EXPECT_EQ(resolveKeypointMethod(KeypointMethod::kAuto, organized), KeypointMethod::kOccludingContour);
+  EXPECT_EQ(resolveKeypointMethod(KeypointMethod::kAuto, unorganized), KeypointMethod::kBoundary);
+  EXPECT_EQ(resolveKeypointMethod(KeypointMethod::kBoundary, organized), KeypointMethod::kBoundary);
+
+  const FrontEndParams params;
+  const float leaf = params.downsample.leaf_size;
+  const auto surface = estimateNormals(*downsample(*organized.cloud, params.downsample), params.normals,
+                                       organized.sensor_origin);
+  const std::vector<int> boundary = detectBoundaryKeypoints(*surface, params.keypoints);
+  const std::vector<int> contour =
+      nearestSurfacePoints(*surface, *organized.cloud, detectOccludingContourPixels(organized, params.keypoints.contour), leaf);
+  ASSERT_FALSE(contour.empty());
+  ASSERT_NE(boundary, contour);  // the boundary test also fires on the image border
+  EXPECT_EQ(detectKeypoints(unorganized, *surface, params.keypoints, leaf), boundary);
+  EXPECT_EQ(detectKeypoints(organized, *surface, params.keypoints, leaf), contour);
+
+  KeypointParams forced = params.keypoints;
+  forced.method = KeypointMethod::kOccludingContour;
+  expectError([&] { detectKeypoints(unorganized, *surface, forced, leaf); }, ErrorCode::kInvalidInput,
+              "need an organized scene");
+}
+
+TEST(Keypoints, EdgePointsSelectTheirNearestSurfacePointAndMinSpacingKeepsOnePerCell) {
+  // 20 x 20 points at the centres of 1 cm voxels, from (0.005, 0.005) on: exactly 5 x 5 cells of 4 cm.
+  const int n = 20;
+  XyzCloud grid = gridPlane(n, 0.01f, 1.005f);
+  for (auto& p : grid) p.x += 0.1f, p.y += 0.1f;
+  const auto surface = estimateNormals(grid, NormalParams{}, Eigen::Vector3f::Zero());
+  ASSERT_EQ(surface->size(), grid.size());
+  // Two raw points, each in the voxel of one surface point, and a third 2 cm off the plane.
+  Cloud raw;
+  PointT a, b, c;
+  a.getVector3fMap() = surface->at(21).getVector3fMap() + Eigen::Vector3f(0.004f, -0.004f, 0.004f);
+  b.getVector3fMap() = surface->at(250).getVector3fMap() + Eigen::Vector3f(-0.004f, 0.0f, -0.004f);
+  c.getVector3fMap() = surface->at(250).getVector3fMap() + Eigen::Vector3f(0.0f, 0.0f, 0.02f);
+  raw.push_back(a), raw.push_back(b), raw.push_back(c);
+  EXPECT_EQ(nearestSurfacePoints(*surface, raw, {0, 1, 2}, 0.01f), (std::vector<int>{21, 250}));
+  expectError([&] { nearestSurfacePoints(*surface, raw, {3}, 0.01f); }, ErrorCode::kInvalidInput,
+              "edge point index 3");
+
+  std::vector<int> all(surface->size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  EXPECT_EQ(thinKeypoints(*surface, all, 0.0f), all);
+  // The first point of each cell in row-major order is its corner point.
+  std::vector<int> corners;
+  for (int i = 0; i < n; i += 4) {
+    for (int j = 0; j < n; j += 4) corners.push_back(i * n + j);
+  }
+  EXPECT_EQ(thinKeypoints(*surface, all, 0.04f), corners);
+  expectError([&] { thinKeypoints(*surface, all, -1.0f); }, ErrorCode::kInvalidInput, "keypoints.min_spacing");
+}
+
+}  // namespace
+}  // namespace ism

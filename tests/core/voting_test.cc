@@ -1,0 +1,66 @@
+#include "core/recognition/voting.h"
+
+#include <gtest/gtest.h>
+
+#include <numeric>
+
+#include "core/common/error.h"
+#include "core/recognition/hough_space.h"
+#include "tests/common/hand_made_votes.h"
+
+namespace ism {
+namespace {
+
+using testing::HandMadeObject;
+using testing::handMadeObject;
+using testing::modelWithVotes;
+using testing::strategy;
+
+TEST(CastVotes, VotesRotatedBackLandOnTheCentre) {
+  const Eigen::Vector3f center(1.0f, -2.0f, 0.5f);
+  const HandMadeObject o = handMadeObject(center, 50);
+  const Model m = modelWithVotes(o.votes);
+  const auto votes = castVotes(m, 0, o.features, o.activations, strategy(VoteWeighting::kCategorization));
+  ASSERT_EQ(votes.size(), 50u);
+  for (const auto& v : votes) {
+    EXPECT_LT((v.position - center).norm(), 1e-5f);
+    EXPECT_EQ(v.weight, 1.0f);
+    EXPECT_EQ(v.category, 0);
+  }
+  const auto peaks = HoughSpace(m, 0, o.features, o.activations, strategy(VoteWeighting::kCategorization)).findPeaks(10.0f);
+  ASSERT_EQ(peaks.size(), 1u);
+  EXPECT_LT((peaks[0].center - center).norm(), 1e-5f);
+  EXPECT_FLOAT_EQ(peaks[0].score, 50.0f);
+  EXPECT_EQ(peaks[0].support, 50);
+  EXPECT_FLOAT_EQ(peaks[0].score, scoreAt(votes, peaks[0].center, m.categories[0].bin_size));
+}
+
+TEST(CastVotes, LocalizationWeightsOfAKeypointSumToOneAndActivationWeightsAreSmaller) {
+  Features f;
+  f.positions = {Eigen::Vector3f::Zero()};
+  f.lrfs = {Eigen::Matrix3f::Identity()};
+  const std::vector<Eigen::Vector3f> three(3, Eigen::Vector3f::UnitX()), five(5, Eigen::Vector3f::UnitY());
+  const Model m = modelWithVotes({three, five});
+  const std::vector<Activation> activations{{0, 0, 0.3f}, {0, 1, 0.6f}};
+  const auto lw = castVotes(m, 0, f, activations, strategy(VoteWeighting::kLocalization));
+  const auto aw = castVotes(m, 0, f, activations, strategy(VoteWeighting::kActivation));
+  ASSERT_EQ(lw.size(), 8u);
+  ASSERT_EQ(aw.size(), 8u);
+  const auto sum = [](const std::vector<Vote>& v) {
+    return std::accumulate(v.begin(), v.end(), 0.0f, [](float s, const Vote& x) { return s + x.weight; });
+  };
+  EXPECT_NEAR(sum(lw), 1.0f, 1e-6f);
+  EXPECT_FLOAT_EQ(lw[0].weight, 1.0f / (2 * 3));
+  EXPECT_FLOAT_EQ(lw[3].weight, 1.0f / (2 * 5));
+  for (size_t i = 0; i < aw.size(); ++i) EXPECT_LT(aw[i].weight, lw[i].weight);
+  EXPECT_FLOAT_EQ(aw[0].weight, (1 - 0.3f / 2) / (2 * 3));
+}
+
+TEST(CastVotes, RejectsActivationsOutsideTheTable) {
+  const HandMadeObject o = handMadeObject(Eigen::Vector3f::Zero(), 2);
+  const Model m = modelWithVotes(o.votes);
+  EXPECT_THROW(castVotes(m, 0, o.features, {{0, 7, 0.0f}}, strategy(VoteWeighting::kCategorization)), Error);
+}
+
+}  // namespace
+}  // namespace ism
