@@ -47,6 +47,11 @@ RecognizerService::RecognizerService(ServiceContext context, AccessControl& acce
   context_.abandoned = &abandoned_;
 }
 
+void RecognizerService::modelsChanged() {
+  context_.metrics.setLoadedModels(context_.models.size());
+  context_.health.setModels(context_.models.size());
+}
+
 void RecognizerService::touch() {
   last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
 }
@@ -183,7 +188,7 @@ grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerConte
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: name is empty");
         if (request.path().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: path is empty");
         *response = context_.models.load(request.name(), request.path())->info;
-        context_.metrics.setLoadedModels(context_.models.size());
+        modelsChanged();
         spdlog::info("[{}] loaded model {}@{} from {} in {:.1f}ms", request_id, response->name(),
                      response->version(), response->path(), response->load_ms());
       });
@@ -196,7 +201,7 @@ grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerCon
       [this](const v1::UnloadModelRequest& request, v1::UnloadModelResponse*, const std::string& request_id) {
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "UnloadModel: name is empty");
         context_.models.unload(request.name());
-        context_.metrics.setLoadedModels(context_.models.size());
+        modelsChanged();
         spdlog::info("[{}] unloaded model {}", request_id, request.name());
       });
 }
@@ -214,7 +219,7 @@ grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerCo
           spdlog::warn("[{}] reload of {} failed: {}", request_id, failure.path, failure.message);
         }
         for (const auto& model : context_.models.list()) *response->add_models() = model->info;
-        context_.metrics.setLoadedModels(context_.models.size());
+        modelsChanged();
         spdlog::info("[{}] reloaded: {} models, {} failures", request_id, response->models_size(),
                      response->failures_size());
       });

@@ -72,6 +72,7 @@ class RecognizerService final : public RawFurnitureRecognizer {
   class UnaryCall;
   class RejectedStream;
   void touch();  // a call arrived or ended
+  void modelsChanged();
 
   ServiceContext context_;
   AccessControl& access_;

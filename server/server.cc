@@ -39,8 +39,9 @@ Server::Server(const ServerOptions& options)
   }
   if (models_.size() == 0) spdlog::warn("no *.ismm in {}: load models with LoadModel", options.model_dir);
   metrics_.setLoadedModels(models_.size());
+  health_.setModels(models_.size());
   warnAboutExposure();
-  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, admin_pool_, metrics_, options.limits}, access_);
+  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, admin_pool_, metrics_, health_, options.limits}, access_);
 
   const auto credentials = options.tls_cert.empty()
                                ? grpc::InsecureServerCredentials()
@@ -55,6 +56,7 @@ Server::Server(const ServerOptions& options)
   builder.RegisterService(service_.get());
   server_ = builder.BuildAndStart();
   if (!server_ || port == 0) throw Error(ErrorCode::kIo, "cannot listen on " + options.listen + " (--listen)");
+  health_.attach(server_->GetHealthCheckService());
   spdlog::info("listening on {} (port {}, {}{}, tokens {}), {} worker threads x {} per request, metrics {}",
                options.listen, port, options.tls_cert.empty() ? "plain text" : "TLS",
                options.tls_client_ca.empty() ? "" : " with client certificates",
@@ -82,7 +84,7 @@ void Server::drain() {
   spdlog::info("draining running calls (up to {}s)", options_.drain_seconds);
   const auto start = std::chrono::steady_clock::now();
   // Health first, so load balancers stop sending new calls while the old ones finish.
-  server_->GetHealthCheckService()->SetServingStatus(false);
+  health_.setDraining();
   service_->beginShutdown();
   const auto drain_end = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
                                      std::chrono::duration<double>(options_.drain_seconds));

@@ -6,6 +6,7 @@
 #include <memory>
 
 #include "server/auth.h"
+#include "server/health.h"
 #include "server/metrics.h"
 #include "server/model_registry.h"
 #include "server/options.h"
@@ -34,6 +35,7 @@ class Server {
   // first and every call it finishes finds the rest still there.
   ModelRegistry models_;
   Metrics metrics_;
+  Health health_;
   WorkerPool pool_;
   WorkerPool admin_pool_{1, 1};
   AccessControl access_;

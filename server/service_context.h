@@ -9,6 +9,7 @@
 
 #include "core/common/types.h"
 #include "server/conversion.h"
+#include "server/health.h"
 #include "server/metrics.h"
 #include "server/model_registry.h"
 #include "server/worker_pool.h"
@@ -20,6 +21,7 @@ struct ServiceContext {
   WorkerPool& pool;        // recognitions
   WorkerPool& admin_pool;  // LoadModel, UnloadModel, ReloadModels
   Metrics& metrics;
+  Health& health;
   InputLimits limits;
   // Set once the drain time is over: the work still running is given up (may be null).
   const std::atomic<bool>* abandoned = nullptr;

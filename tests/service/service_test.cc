@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
 #include <future>
 #include <limits>
 #include <map>
@@ -21,6 +22,7 @@
 namespace ism::testing {
 namespace {
 
+namespace fs = std::filesystem;
 using v1::FurnitureRecognizer;
 
 class ServiceTest : public ::testing::Test {
@@ -67,6 +69,42 @@ TEST_F(ServiceTest, HealthIsServing) {
   grpc::health::v1::HealthCheckResponse response;
   ASSERT_TRUE(health->Check(&context, {}, &response).ok());
   EXPECT_EQ(response.status(), grpc::health::v1::HealthCheckResponse::SERVING);
+}
+
+grpc::health::v1::HealthCheckResponse::ServingStatus healthOf(const ServerProcess& server, const std::string& service,
+                                                              grpc::StatusCode* code = nullptr) {
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
+  grpc::health::v1::HealthCheckRequest request;
+  request.set_service(service);
+  grpc::health::v1::HealthCheckResponse response;
+  const grpc::Status status = grpc::health::v1::Health::NewStub(server.channel())->Check(&context, request, &response);
+  if (code != nullptr) *code = status.error_code();
+  return response.status();
+}
+
+// The standard health protocol per service: "" is the process, ism.v1.FurnitureRecognizer whether
+// it can recognise now, which takes a loaded model.
+TEST(ServiceHealth, EachServiceHasItsOwnStatus) {
+  using Health = grpc::health::v1::HealthCheckResponse;
+  const fs::path dir = fs::path(::testing::TempDir()) / ("ism_health_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  fs::copy_file(tinyModelDirectory() + "/default.ismm", dir / "later.model", fs::copy_options::overwrite_existing);
+  ServerProcess server({"--models", dir.string()});  // no *.ismm: nothing loaded
+  EXPECT_EQ(healthOf(server, ""), Health::SERVING);
+  EXPECT_EQ(healthOf(server, "ism.v1.FurnitureRecognizer"), Health::NOT_SERVING);
+  grpc::StatusCode code = grpc::StatusCode::OK;
+  healthOf(server, "ism.v1.NoSuchService", &code);
+  EXPECT_EQ(code, grpc::StatusCode::NOT_FOUND);
+
+  grpc::ClientContext context;
+  v1::LoadModelRequest load;
+  load.set_name("default");
+  load.set_path("later.model");
+  v1::ModelInfo info;
+  ASSERT_TRUE(FurnitureRecognizer::NewStub(server.channel())->LoadModel(&context, load, &info).ok());
+  EXPECT_EQ(healthOf(server, "ism.v1.FurnitureRecognizer"), Health::SERVING);
+  fs::remove_all(dir);
 }
 
 TEST_F(ServiceTest, ReflectionListsTheServices) {
