@@ -143,6 +143,11 @@ grpc::Status AccessControl::check(const grpc::ServerContextBase& context, const 
     return {grpc::StatusCode::UNAUTHENTICATED,
             std::string(rpc) + " needs a token: send the metadata 'authorization: Bearer <token>'"};
   }
+  // Which of several would count is a guess a proxy in between may make differently.
+  if (metadata.count("authorization") > 1) {
+    return {grpc::StatusCode::UNAUTHENTICATED,
+            std::string(rpc) + ": more than one 'authorization' metadata entry; send exactly one"};
+  }
   const std::string value(header->second.data(), header->second.size());
   constexpr std::string_view kScheme = "bearer ";
   const bool bearer = value.size() > kScheme.size() &&

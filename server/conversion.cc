@@ -4,13 +4,17 @@
 #include <grpcpp/impl/codegen/proto_utils.h>
 #include <grpcpp/support/proto_buffer_writer.h>
 #include <pcl/common/transforms.h>
+#include <spdlog/fmt/fmt.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <vector>
 
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
+#include "proto/wire/enums.h"
+#include "proto/wire/messages.h"
 
 namespace ism::server {
 namespace {
@@ -58,26 +62,6 @@ Scene cloudScene(const v1::PointCloud& cloud, const InputLimits& limits, SceneBu
                          static_cast<int>(width), static_cast<int>(height), "request", &reuse);
 }
 
-DepthIntrinsics intrinsicsFromProto(const v1::CameraIntrinsics& in) {
-  auto positive = [](float v, const char* name) {
-    if (!(std::isfinite(v) && v > 0)) {
-      throw invalid(std::string("scene.depth.intrinsics.") + name + " must be > 0, got " + std::to_string(v));
-    }
-    return v;
-  };
-  auto finite = [](float v, const char* name) {
-    if (!std::isfinite(v)) throw invalid(std::string("scene.depth.intrinsics.") + name + " is not finite");
-    return v;
-  };
-  DepthIntrinsics out;
-  out.fx = positive(in.fx(), "fx");
-  out.fy = positive(in.fy(), "fy");
-  out.cx = finite(in.cx(), "cx");
-  out.cy = finite(in.cy(), "cy");
-  out.depth_scale = positive(in.depth_scale(), "depth_scale");
-  return out;
-}
-
 // Width and height from the PNG header, so an oversized image is refused before it is inflated.
 std::pair<uint32_t, uint32_t> pngSize(const std::string& png) {
   static const char kSignature[] = "\x89PNG\r\n\x1a\n";
@@ -92,7 +76,7 @@ std::pair<uint32_t, uint32_t> pngSize(const std::string& png) {
 }
 
 Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
-  const DepthIntrinsics intrinsics = intrinsicsFromProto(depth.intrinsics());
+  const DepthIntrinsics intrinsics = wire::intrinsicsFromProto(depth.intrinsics(), "scene.depth.intrinsics");
   const uint64_t width = depth.width(), height = depth.height();
   switch (depth.encoding()) {
     case v1::DEPTH_ENCODING_RAW_UINT16_LE: {
@@ -127,24 +111,26 @@ Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
   }
 }
 
-Eigen::Vector3f vec(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
-
-void setVec(const Eigen::Vector3f& v, v1::Vec3* out) {
-  out->set_x(v.x());
-  out->set_y(v.y());
-  out->set_z(v.z());
-}
-
-void setQuat(const Eigen::Quaternionf& q, v1::Quaternion* out) {
-  out->set_w(q.w());
-  out->set_x(q.x());
-  out->set_y(q.y());
-  out->set_z(q.z());
+// The codewords a kNN activation can choose from: the global codebook's, or the largest
+// category's own (0 when the model has no such codebook; recognition then says so).
+int largestCodebook(const Model& model, CodebookType type) {
+  if (type == CodebookType::kGlobal) return model.global_codebook ? model.global_codebook->size() : 0;
+  int largest = 0;
+  for (const auto& category : model.categories) {
+    if (category.own_codebook) largest = std::max(largest, category.own_codebook->size());
+  }
+  return largest;
 }
 
 }  // namespace
 
 void decodeMessage(const grpc::ByteBuffer& bytes, const std::string& what, google::protobuf::MessageLite* out) {
+  // A message of 0 bytes is valid (every field at its default), but gRPC hands it over as a
+  // buffer without slices, which its reader refuses.
+  if (bytes.Length() == 0) {
+    out->Clear();
+    return;
+  }
   grpc::ByteBuffer shared(bytes);  // shares the slices: the reader wants a mutable buffer
   grpc::ProtoBufferReader reader(&shared);
   if (!reader.status().ok() || !out->ParseFromZeroCopyStream(&reader)) {
@@ -174,9 +160,8 @@ void SceneBuffers::recycle(Scene& scene) {
 }
 
 Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers) {
-  const Eigen::Vector3f origin = vec(scene.sensor_origin());
-  const auto& q = scene.sensor_orientation();
-  Eigen::Quaternionf orientation(q.w(), q.x(), q.y(), q.z());
+  const Eigen::Vector3f origin = wire::fromProto(scene.sensor_origin());
+  Eigen::Quaternionf orientation = wire::fromProto(scene.sensor_orientation());
   if (!origin.allFinite() || !orientation.coeffs().allFinite()) {
     throw invalid("scene.sensor_origin / sensor_orientation contain NaN or Inf");
   }
@@ -209,14 +194,7 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
 
 RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Model& model) {
   RecognitionOptions out;
-  for (const auto& category : in.categories()) {
-    if (model.find(category) == nullptr) {
-      std::string known;
-      for (const auto& c : model.categories) known += (known.empty() ? "" : ", ") + c.name;
-      throw Error(ErrorCode::kNotFound, "unknown category '" + category + "' (the model has: " + known + ")");
-    }
-    out.categories.push_back(category);
-  }
+  out.categories.assign(in.categories().begin(), in.categories().end());
   if (in.has_min_score()) {
     if (!std::isfinite(in.min_score())) throw invalid("options.min_score is not finite");
     out.min_score = in.min_score();
@@ -225,76 +203,49 @@ RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Mode
   out.box_selection = in.has_box_selection() ? in.box_selection() : true;
   out.return_keypoints = in.return_keypoints();
 
+  // Unspecified enums take the defaults service.proto documents.
   const auto& s = in.strategy();
-  switch (s.codebook()) {
-    case v1::CODEBOOK_TYPE_UNSPECIFIED:
-    case v1::CODEBOOK_TYPE_GLOBAL:
-      out.strategy.codebook = CodebookType::kGlobal;
-      break;
-    case v1::CODEBOOK_TYPE_SEPARATED:
-      out.strategy.codebook = CodebookType::kSeparated;
-      break;
-    default:
-      throw invalid("options.strategy.codebook " + std::to_string(s.codebook()) + " is not supported");
+  const auto codebook = s.codebook() == v1::CODEBOOK_TYPE_UNSPECIFIED ? CodebookType::kGlobal
+                                                                      : wire::codebookTypeFromProto(s.codebook());
+  if (!codebook) throw invalid("options.strategy.codebook " + std::to_string(s.codebook()) + " is not supported");
+  out.strategy.codebook = *codebook;
+  const auto activation = s.activation() == v1::ACTIVATION_STRATEGY_UNSPECIFIED
+                              ? ActivationStrategy::kKnn
+                              : wire::activationStrategyFromProto(s.activation());
+  if (!activation) {
+    throw invalid("options.strategy.activation " + std::to_string(s.activation()) + " is not supported");
   }
-  switch (s.activation()) {
-    case v1::ACTIVATION_STRATEGY_UNSPECIFIED:
-    case v1::ACTIVATION_STRATEGY_KNN:
-      if (s.k() < 0) throw invalid("options.strategy.k must be >= 0, got " + std::to_string(s.k()));
-      out.strategy.activation = model.trained_knn;
-      if (s.k() > 0) out.strategy.activation.k = s.k();
-      break;
-    case v1::ACTIVATION_STRATEGY_CUTOFF:
-      if (!(s.cutoff() >= 0 && std::isfinite(s.cutoff()))) {
-        throw invalid("options.strategy.cutoff must be >= 0, got " + std::to_string(s.cutoff()));
-      }
-      out.strategy.activation = model.trained_cutoff;
-      if (s.cutoff() > 0) out.strategy.activation.cutoff = s.cutoff();
-      break;
-    default:
-      throw invalid("options.strategy.activation " + std::to_string(s.activation()) + " is not supported");
+  // Beyond these bounds k and the cutoff activate nothing more, only cost more.
+  if (*activation == ActivationStrategy::kKnn) {
+    if (s.k() < 0) throw invalid("options.strategy.k must be >= 0, got " + std::to_string(s.k()));
+    const int codewords = largestCodebook(model, *codebook);
+    if (codewords > 0 && s.k() > codewords) {
+      throw invalid("options.strategy.k = " + std::to_string(s.k()) + " is more than the " +
+                    std::to_string(codewords) + " codewords of the model's " + toString(*codebook) + " codebook");
+    }
+    out.strategy.activation = model.trained_knn;
+    if (s.k() > 0) out.strategy.activation.k = s.k();
+  } else {
+    if (!(s.cutoff() >= 0 && std::isfinite(s.cutoff()))) {
+      throw invalid("options.strategy.cutoff must be >= 0, got " + std::to_string(s.cutoff()));
+    }
+    if (s.cutoff() > kMaxDescriptorDistance) {
+      throw invalid(fmt::format("options.strategy.cutoff = {:g} is more than {:g}, the largest distance between a "
+                                "descriptor and a codeword",
+                                s.cutoff(), kMaxDescriptorDistance));
+    }
+    out.strategy.activation = model.trained_cutoff;
+    if (s.cutoff() > 0) out.strategy.activation.cutoff = s.cutoff();
   }
-  switch (s.weighting()) {
-    case v1::VOTE_WEIGHTING_UNSPECIFIED:
-    case v1::VOTE_WEIGHTING_LOCALIZATION:
-      out.strategy.weighting = VoteWeighting::kLocalization;
-      break;
-    case v1::VOTE_WEIGHTING_CATEGORIZATION:
-      out.strategy.weighting = VoteWeighting::kCategorization;
-      break;
-    case v1::VOTE_WEIGHTING_ACTIVATION:
-      out.strategy.weighting = VoteWeighting::kActivation;
-      break;
-    default:
-      throw invalid("options.strategy.weighting " + std::to_string(s.weighting()) + " is not supported");
-  }
+  const auto weighting = s.weighting() == v1::VOTE_WEIGHTING_UNSPECIFIED ? VoteWeighting::kLocalization
+                                                                         : wire::voteWeightingFromProto(s.weighting());
+  if (!weighting) throw invalid("options.strategy.weighting " + std::to_string(s.weighting()) + " is not supported");
+  out.strategy.weighting = *weighting;
   return out;
 }
 
 void resultToProto(const RecognitionResult& result, const LoadedModel& model, v1::RecognitionResult* out) {
-  for (const auto& h : result.hypotheses) {
-    auto* hp = out->add_hypotheses();
-    hp->set_category(h.category);
-    hp->set_score(h.score);
-    hp->set_threshold(h.threshold);
-    setVec(h.center, hp->mutable_center());
-    setVec(h.box.center, hp->mutable_box()->mutable_center());
-    setVec(h.box.size, hp->mutable_box()->mutable_size());
-    setQuat(h.box.rotation, hp->mutable_box()->mutable_rotation());
-    hp->set_support(h.support);
-    setVec(h.support_centroid, hp->mutable_support_centroid());
-    hp->set_passed_selection(h.passed_selection);
-    for (const auto& p : h.support_keypoints) setVec(p, hp->add_support_keypoints());
-  }
-  for (const auto& [stage, ms] : result.timings.stages) {
-    auto* t = out->add_timings();
-    t->set_stage(stage);
-    t->set_ms(ms);
-  }
-  out->set_total_ms(result.timings.total());
-  out->set_input_points(result.input_points);
-  out->set_surface_points(result.surface_points);
-  out->set_keypoints(result.keypoints);
+  wire::resultToProto(result, out);
   out->set_model_name(model.name);
   out->set_model_version(model.info.version());
 }

@@ -25,11 +25,8 @@ void decodeMessage(const grpc::ByteBuffer& bytes, const std::string& what, googl
 void encodeMessage(const google::protobuf::MessageLite& message, grpc::ByteBuffer* out);
 
 // Buffers a worker thread keeps from one decoded cloud to the next. A 640x480 frame is ~8 MB
-// of points. Allocated afresh on every call, that block (with the copy of the bytes the
-// conversion used to make) pushed the worker's malloc arena past glibc's trim threshold: the
-// freed memory went back to the kernel and every call page-faulted it in again, ~1,900 faults
-// in the conversion and ~3,000 in the recognition after it, 5-7 ms a frame that a recognition
-// in process never pays.
+// of points; allocated afresh on every call, that block would be handed back to the kernel and
+// page-faulted in again on every frame, a cost a recognition in process never pays.
 struct SceneBuffers {
   // Larger buffers are not kept: a worker holds at most ~36 MB for a scene it no longer needs.
   static constexpr size_t kMaxKeptPoints = size_t{1} << 20;
@@ -47,9 +44,10 @@ struct SceneBuffers {
 Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers = nullptr);
 
 // Unset strategy fields take the activation parameters the model's thresholds were computed
-// with. Unknown categories fail here, before any work is done.
+// with. Categories are core's to check (recognize() refuses unknown ones before any work).
 RecognitionOptions optionsFromProto(const v1::RecognitionOptions& options, const Model& model);
 
+// The result with the name and version of the model that answered.
 void resultToProto(const RecognitionResult& result, const LoadedModel& model, v1::RecognitionResult* out);
 
 }  // namespace ism::server

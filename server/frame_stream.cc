@@ -39,7 +39,7 @@ FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerCont
       open_(open),
       slot_(std::move(slot)),
       stream_id_(requestId("")),
-      should_stop_(callStopper(context, &cancelled_)) {
+      should_stop_(service.stopper(context, &cancelled_)) {
   service_.metrics.streamOpened();
   spdlog::info("[{}] stream opened by {}", stream_id_, context_->peer());
   reading_ = true;
@@ -88,10 +88,11 @@ void FrameStream::OnReadDone(bool ok) {
     if (!ok) {
       reads_done_ = true;  // the client half-closed (or the call broke: OnCancel says which)
     } else if (shutting_down_) {
-      // Not taken: the stream ends UNAVAILABLE and this frame stays unanswered, so its client
-      // knows to send it again.
+      // Not taken: the stream ends UNAVAILABLE naming this frame, so its client knows to send it
+      // again.
+      if (undecodable.ok() && request.has_scene()) not_processed_.push_back(request.frame_id());
     } else if (!undecodable.ok()) {
-      if (failure_.ok()) failure_ = undecodable;
+      ending_ = undecodable;
     } else {
       if (request.has_settings()) {
         auto settings = std::make_shared<Settings>();
@@ -104,13 +105,14 @@ void FrameStream::OnReadDone(bool ok) {
             settings->policy = v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS;
             break;
           default:
-            failure_ = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
-                                    "settings.policy " + std::to_string(request.settings().policy()) + " (frame " +
-                                        std::to_string(request.frame_id()) + ") is not supported");
+            ending_ = grpc::Status(grpc::StatusCode::INVALID_ARGUMENT,
+                                   "settings.policy " + std::to_string(request.settings().policy()) + " (frame " +
+                                       std::to_string(request.frame_id()) + ") is not supported");
+            if (request.has_scene()) not_processed_.push_back(request.frame_id());
         }
         settings_ = std::move(settings);
       }
-      if (failure_.ok() && request.has_scene()) {
+      if (ending_.ok() && request.has_scene()) {
         if (settings_->policy == v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS && !queued_.empty()) {
           for (const auto& frame : queued_) skipped_.push_back(frame.request.frame_id());
           service_.metrics.framesSkipped(queued_.size());
@@ -130,13 +132,13 @@ void FrameStream::OnReadDone(bool ok) {
 void FrameStream::resumeReadingLocked(Actions* actions) {
   const bool queue_full = settings_->policy != v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS &&
                           queued_.size() >= kMaxQueuedFrames;
-  if (reading_ || reads_done_ || queue_full || cancelled_ || shutting_down_ || !failure_.ok()) return;
+  if (reading_ || reads_done_ || queue_full || cancelled_ || shutting_down_ || !ending_.ok()) return;
   reading_ = true;
   actions->read = true;
 }
 
 void FrameStream::scheduleLocked() {
-  if (processing_ || queued_.empty() || results_.size() >= kMaxPendingResults || cancelled_ || !failure_.ok()) {
+  if (processing_ || queued_.empty() || results_.size() >= kMaxPendingResults || cancelled_ || broken_) {
     return;
   }
   processing_ = true;
@@ -156,17 +158,23 @@ void FrameStream::processNext() {
   }
   act(actions);  // no finish possible: processing_ is still set
 
+  std::optional<v1::FrameResult> processed = process(frame, skipped);
   grpc::ByteBuffer result;
-  encodeMessage(process(frame, std::move(skipped)), &result);
+  if (processed) encodeMessage(*processed, &result);
 
   actions = {};
   {
     std::lock_guard<std::mutex> lock(mutex_);
     processing_ = false;
-    results_.push_back(std::move(result));
-    if (!writing_) {
-      writing_ = true;
-      actions.write = &results_.front();
+    if (processed) {
+      results_.push_back(std::move(result));
+      if (!writing_) {
+        writing_ = true;
+        actions.write = &results_.front();
+      }
+    } else {
+      not_processed_.push_back(frame.request.frame_id());
+      not_processed_.insert(not_processed_.end(), skipped.begin(), skipped.end());
     }
     scheduleLocked();
     finishIfDoneLocked(&actions);
@@ -174,7 +182,7 @@ void FrameStream::processNext() {
   act(actions);
 }
 
-v1::FrameResult FrameStream::process(const Frame& frame, std::vector<uint64_t> skipped) {
+std::optional<v1::FrameResult> FrameStream::process(const Frame& frame, const std::vector<uint64_t>& skipped) {
   const auto start = std::chrono::steady_clock::now();
   v1::FrameResult out;
   out.set_frame_id(frame.request.frame_id());
@@ -186,7 +194,9 @@ v1::FrameResult FrameStream::process(const Frame& frame, std::vector<uint64_t> s
     service_.recognize(stream_id_ + "/" + std::to_string(frame.request.frame_id()), frame.request.scene(),
                        frame.settings->options, should_stop_, out.mutable_result());
   } catch (...) {
-    status = withDeadlineReason(context_, statusFromCurrentException());
+    status = service_.whyStopped(context_, statusFromCurrentException());
+    // Given up at shutdown: no error result, the final status names the frame to send again.
+    if (service_.workAbandoned()) return std::nullopt;
     out.mutable_error()->set_code(status.error_code());
     out.mutable_error()->set_message(status.error_message());
     spdlog::warn("[{}/{}] frame failed: {}: {}", stream_id_, frame.request.frame_id(),
@@ -205,7 +215,7 @@ void FrameStream::OnWriteDone(bool ok) {
     writing_ = false;
     results_.pop_front();
     if (!ok) {
-      failure_ = grpc::Status(grpc::StatusCode::CANCELLED, "the client stopped receiving results");
+      broken_ = true;  // nothing more reaches the client
     } else if (!results_.empty()) {
       writing_ = true;
       actions.write = &results_.front();
@@ -229,20 +239,36 @@ void FrameStream::OnCancel() {
 void FrameStream::finishIfDoneLocked(Actions* actions) {
   // A shutdown does not wait for the client's next frame: the pending read ends with the call.
   if (finished_ || processing_ || writing_ || (reading_ && !shutting_down_)) return;
-  const bool stopped = cancelled_ || !failure_.ok();
+  // Frames already read are answered before the stream ends, also when a bad message ends it;
+  // only a client that is gone (cancelled, or no longer receiving) cuts them short.
+  const bool gone = cancelled_ || broken_;
   const bool drained = queued_.empty() && results_.empty();
-  if (!stopped && !(drained && (reads_done_ || shutting_down_))) return;
+  if (!gone && !(drained && (reads_done_ || shutting_down_ || !ending_.ok()))) return;
   finished_ = true;
-  if (!failure_.ok()) {
-    final_status_ = failure_;
+  if (broken_) {
+    final_status_ = {grpc::StatusCode::CANCELLED, "the client stopped receiving results"};
   } else if (cancelled_) {
-    final_status_ = withDeadlineReason(context_, {grpc::StatusCode::CANCELLED, "the client cancelled the stream"});
+    final_status_ = service_.whyStopped(context_, {grpc::StatusCode::CANCELLED, "the client cancelled the stream"});
+  } else if (!ending_.ok()) {
+    final_status_ = {ending_.error_code(), ending_.error_message() + "; every frame read before it was answered" +
+                                               notProcessedLocked()};
   } else if (!reads_done_) {
     final_status_ = {grpc::StatusCode::UNAVAILABLE,
-                     "the server is shutting down: frames of this stream without a result were not processed; "
-                     "send them again (to another server, or after the restart)"};
+                     "the server is shutting down: frames of this stream without a result were not processed" +
+                         notProcessedLocked() + "; send them again (to another server, or after the restart)"};
   }
   actions->finish = true;
+}
+
+std::string FrameStream::notProcessedLocked() const {
+  if (not_processed_.empty()) return "";
+  constexpr size_t kMaxNamed = 32;  // keeps the status message short whatever the client sent
+  std::string ids;
+  for (size_t i = 0; i < std::min(not_processed_.size(), kMaxNamed); ++i) {
+    ids += (ids.empty() ? "" : ", ") + std::to_string(not_processed_[i]);
+  }
+  if (not_processed_.size() > kMaxNamed) ids += " and " + std::to_string(not_processed_.size() - kMaxNamed) + " more";
+  return "; not processed: frame" + std::string(not_processed_.size() > 1 ? "s " : " ") + ids;
 }
 
 void FrameStream::OnDone() {

@@ -6,7 +6,10 @@
 //   LATEST_FRAME_WINS: reading never pauses; a newer frame replaces the waiting ones, whose
 //     ids ride along with the next result.
 // A frame that fails (bad input) gets a FrameResult carrying the error; the stream goes on. A
-// message that is not a StreamFramesRequest at all ends the stream: its frame id is unknown.
+// message that is not a StreamFramesRequest at all (its frame id is unknown), or settings that
+// cannot be served, end the stream: the frames read before it are answered first, and the final
+// status names the frames read but not processed. Every frame read thus gets a result, an error
+// result, or its id in the final status.
 // Messages travel as bytes, decoded and encoded here (see decodeMessage).
 #include <grpcpp/support/server_callback.h>
 
@@ -15,6 +18,7 @@
 #include <deque>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <vector>
 
@@ -83,11 +87,13 @@ class FrameStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc:
   void act(const Actions& actions);
 
   void processNext();  // on the worker pool
-  v1::FrameResult process(const Frame& frame, std::vector<uint64_t> skipped);
+  // nullopt when the server gave the frame up at shutdown.
+  std::optional<v1::FrameResult> process(const Frame& frame, const std::vector<uint64_t>& skipped);
   // The *Locked helpers expect mutex_ held and add what is to be started to `actions`.
   void resumeReadingLocked(Actions* actions);
   void scheduleLocked();
   void finishIfDoneLocked(Actions* actions);
+  std::string notProcessedLocked() const;  // "; not processed: frames 7, 8", or ""
 
   const ServiceContext& service_;
   grpc::CallbackServerContext* context_;
@@ -111,7 +117,9 @@ class FrameStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc:
   bool writing_ = false;
   bool finished_ = false;
   bool shutting_down_ = false;
-  grpc::Status failure_;  // ends the whole stream (bad settings, client stopped reading)
+  grpc::Status ending_;  // a message that ends the stream once the frames before it are answered
+  bool broken_ = false;  // a result could not be written: the client is no longer receiving
+  std::vector<uint64_t> not_processed_;  // frames read but never to be processed
   grpc::Status final_status_;
   size_t frames_ = 0;
 };

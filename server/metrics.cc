@@ -30,6 +30,11 @@ Metrics::Metrics(const std::string& listen)
                          .Name("ism_stage_duration_seconds")
                          .Help("Recognition pipeline stage durations")
                          .Register(*registry_)),
+      open_calls_(prometheus::BuildGauge()
+                      .Name("ism_open_calls")
+                      .Help("Unary calls received and not answered yet (streams: ism_active_streams)")
+                      .Register(*registry_)
+                      .Add({})),
       active_streams_(prometheus::BuildGauge()
                           .Name("ism_active_streams")
                           .Help("StreamFrames calls in progress")

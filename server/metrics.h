@@ -23,6 +23,8 @@ class Metrics {
 
   void recordRequest(const std::string& rpc, grpc::StatusCode code, double seconds);
   void recordStages(const StageTimings& timings);
+  void callOpened() { open_calls_.Increment(); }
+  void callClosed() { open_calls_.Decrement(); }
   void streamOpened() { active_streams_.Increment(); }
   void streamClosed() { active_streams_.Decrement(); }
   void framesSkipped(size_t count) { skipped_frames_.Increment(static_cast<double>(count)); }
@@ -34,6 +36,7 @@ class Metrics {
   prometheus::Family<prometheus::Counter>& requests_;
   prometheus::Family<prometheus::Histogram>& request_seconds_;
   prometheus::Family<prometheus::Histogram>& stage_seconds_;
+  prometheus::Gauge& open_calls_;
   prometheus::Gauge& active_streams_;
   prometheus::Counter& skipped_frames_;
   prometheus::Gauge& loaded_models_;

@@ -1,16 +1,11 @@
 #include "server/model_registry.h"
 
-#include <zlib.h>
-
 #include <algorithm>
 #include <chrono>
-#include <cstdio>
 #include <filesystem>
 
 #include "core/common/error.h"
-#include "core/io/file_bytes.h"
 #include "core/model/model_file.h"
-#include "ism/v1/model.pb.h"
 
 namespace ism::server {
 namespace fs = std::filesystem;
@@ -31,39 +26,37 @@ std::vector<fs::path> modelFiles(const std::string& directory) {
   return files;
 }
 
-// Reads a model file into a LoadedModel without registering it.
-std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const std::string& path) {
+}  // namespace
+
+std::shared_ptr<const LoadedModel> ModelRegistry::readModel(const std::string& name, const std::string& path) const {
   if (name.empty()) throw Error(ErrorCode::kInvalidInput, "model name is empty (path " + path + ")");
   auto start = std::chrono::steady_clock::now();
+  // Read once: the same bytes give the model, its description and its version, so they agree.
+  ModelFileContents file = readModelFile(path, max_file_bytes_);
   auto loaded = std::make_shared<LoadedModel>();
-  // Read once: the same bytes give the model, its metadata and its version, so they agree.
-  const std::string bytes = readFileBytes(path);
-  loaded->model = parseModel(bytes, path);  // checks magic, version and CRC
-  v1::ModelFile envelope;
-  v1::ModelData data;
-  if (!envelope.ParseFromString(bytes) || !data.ParseFromString(envelope.payload())) {
-    throw Error(ErrorCode::kCorruptModel, "model file " + path + " cannot be parsed for its metadata");
-  }
+  loaded->name = name;
+  loaded->model = std::move(file.model);
+  const Model& model = loaded->model;
+  const v1::ModelData& data = file.description;
   v1::ModelInfo& info = loaded->info;
-  char version[9];
-  std::snprintf(version, sizeof version, "%08lx",
-                crc32(0L, reinterpret_cast<const Bytef*>(bytes.data()), static_cast<uInt>(bytes.size())));
   info.set_name(name);
   info.set_path(fs::absolute(path).string());
-  info.set_version(version);
-  info.set_format_version(envelope.format_version());
+  info.set_version(file.version);
+  info.set_format_version(file.format_version);
   *info.mutable_front_end() = data.front_end();
   *info.mutable_trained_knn() = data.trained_knn();
   *info.mutable_trained_cutoff() = data.trained_cutoff();
-  info.set_global_codebook_size(data.global_codebook().size());
-  for (const auto& category : data.categories()) {
+  info.set_global_codebook_size(model.global_codebook ? model.global_codebook->size() : 0);
+  for (size_t i = 0; i < model.categories.size(); ++i) {
+    const auto& category = data.categories(static_cast<int>(i));
+    const CategoryModel& trained = model.categories[i];
     auto* out = info.add_categories();
     out->set_name(category.name());
     out->set_bin_size(category.bin_size());
     *out->mutable_box() = category.box();
-    out->set_own_codebook_size(category.own_codebook().size());
-    out->set_global_votes(category.global_votes().vectors_size() / 3);
-    out->set_own_votes(category.own_votes().vectors_size() / 3);
+    out->set_own_codebook_size(trained.own_codebook ? trained.own_codebook->size() : 0);
+    out->set_global_votes(trained.global_votes.vectors.size());
+    out->set_own_votes(trained.own_votes.vectors.size());
     *out->mutable_thresholds() = category.thresholds();
     out->set_training_models(category.training_models());
     out->set_training_scans(category.training_scans());
@@ -73,47 +66,74 @@ std::shared_ptr<const LoadedModel> readModelFile(const std::string& name, const 
                                  std::chrono::system_clock::now().time_since_epoch())
                                  .count());
   info.set_load_ms(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count());
-  loaded->name = name;
   return loaded;
 }
 
-}  // namespace
+std::string ModelRegistry::pathInDirectory(const std::string& path) const {
+  if (directory_.empty()) {
+    throw Error(ErrorCode::kInvalidInput, "LoadModel: the server has no model folder (--models) to load from");
+  }
+  fs::path root = fs::absolute(directory_).lexically_normal();
+  if (root.filename().empty()) root = root.parent_path();  // a trailing '/'
+  const fs::path resolved = (fs::path(path).is_absolute() ? fs::path(path) : root / path).lexically_normal();
+  const fs::path inside = resolved.lexically_relative(root);
+  if (inside.empty() || inside == "." || *inside.begin() == "..") {
+    throw Error(ErrorCode::kInvalidInput, "LoadModel: path '" + path + "' is not in the model folder " +
+                                              root.string() + ": only files there are loaded");
+  }
+  return resolved.string();
+}
 
 void ModelRegistry::loadDirectory() {
-  for (const auto& file : modelFiles(directory_)) load(file.stem().string(), file.string());
+  std::lock_guard<std::mutex> changing(changes_);
+  for (const auto& file : modelFiles(directory_)) put(readModel(file.stem().string(), file.string()));
 }
 
 std::shared_ptr<const LoadedModel> ModelRegistry::load(const std::string& name, const std::string& path) {
-  auto loaded = readModelFile(name, path);
-  std::lock_guard<std::mutex> lock(mutex_);
-  models_[name] = loaded;
+  const std::string file = pathInDirectory(path);  // before anything on disk is touched
+  std::lock_guard<std::mutex> changing(changes_);
+  auto loaded = readModel(name, file);
+  unloaded_.erase(name);
+  put(loaded);
   return loaded;
 }
 
 void ModelRegistry::unload(const std::string& name) {
+  std::lock_guard<std::mutex> changing(changes_);
   std::lock_guard<std::mutex> lock(mutex_);
   if (models_.erase(name) == 0) {
     throw Error(ErrorCode::kNotFound, "model '" + name + "' is not loaded (loaded: " + loadedNames() + ")");
   }
+  unloaded_.insert(name);
 }
 
 std::vector<LoadFailure> ModelRegistry::reload() {
+  std::lock_guard<std::mutex> changing(changes_);
   std::map<std::string, std::string> sources;  // name -> path
   for (const auto& model : list()) sources[model->name] = model->info.path();
   std::vector<LoadFailure> failures;
   try {
-    for (const auto& file : modelFiles(directory_)) sources.emplace(file.stem().string(), fs::absolute(file).string());
+    for (const auto& file : modelFiles(directory_)) {
+      if (unloaded_.count(file.stem().string()) == 0) {
+        sources.emplace(file.stem().string(), fs::absolute(file).string());
+      }
+    }
   } catch (const Error& e) {
     failures.push_back({"", directory_, e.what()});
   }
   for (const auto& [name, path] : sources) {
     try {
-      load(name, path);
+      put(readModel(name, path));
     } catch (const Error& e) {
       failures.push_back({name, path, e.what()});
     }
   }
   return failures;
+}
+
+void ModelRegistry::put(std::shared_ptr<const LoadedModel> model) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  models_[model->name] = std::move(model);
 }
 
 std::shared_ptr<const LoadedModel> ModelRegistry::get(const std::string& name) const {

@@ -10,62 +10,104 @@
 #include "server/status_mapping.h"
 
 namespace ism::server {
-namespace {
-
-// A stream refused before it started: ends at once with the reason.
-class RejectedStream final : public grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer> {
+// A call counted as open until gRPC is done with it (its status sent): a shutdown that waits for
+// no call to be open exits with every answer delivered.
+template <typename Reactor>
+class RecognizerService::Counted : public Reactor {
  public:
-  explicit RejectedStream(const grpc::Status& status) { Finish(status); }
-  void OnDone() override { delete this; }
+  explicit Counted(RecognizerService& service) : service_(service) {
+    ++service_.open_calls_;
+    service_.context_.metrics.callOpened();
+  }
+  void OnDone() override {
+    service_.touch();
+    service_.context_.metrics.callClosed();
+    --service_.open_calls_;
+    delete this;
+  }
+
+ private:
+  RecognizerService& service_;
 };
 
-}  // namespace
+class RecognizerService::UnaryCall final : public Counted<grpc::ServerUnaryReactor> {
+ public:
+  using Counted::Counted;
+};
+
+// A stream refused before it started: ends at once with the reason.
+class RecognizerService::RejectedStream final
+    : public Counted<grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>> {
+ public:
+  RejectedStream(RecognizerService& service, const grpc::Status& status) : Counted(service) { Finish(status); }
+};
+
+RecognizerService::RecognizerService(ServiceContext context, AccessControl& access)
+    : context_(context), access_(access) {
+  context_.abandoned = &abandoned_;
+}
+
+void RecognizerService::modelsChanged() {
+  context_.metrics.setLoadedModels(context_.models.size());
+  context_.health.setModels(context_.models.size());
+}
+
+void RecognizerService::touch() {
+  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+}
 
 template <typename Request, typename Response, typename Work>
 grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* context, const char* rpc,
-                                                   Access needed, const Raw* request_bytes, Raw* response_bytes,
-                                                   Work work) {
-  auto* reactor = context->DefaultReactor();
-  ++running_calls_;  // before the check: a shutdown that saw none running finds this call refused
-  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+                                                   Access needed, RunsOn runs_on, const Raw* request_bytes,
+                                                   Raw* response_bytes, Work work) {
+  auto* reactor = new UnaryCall(*this);  // deletes itself in OnDone
+  touch();
   if (shutting_down_) {
-    --running_calls_;  // counted as done before it is, never after: Finish lets a shutdown proceed
-    finish(context, reactor, rpc, requestId(""),
-           {grpc::StatusCode::UNAVAILABLE, "the server is shutting down: send the call again (to another server, "
-                                           "or after the restart)"},
-           0);
+    finish(context, reactor, rpc, requestId(""), refusedWhileShuttingDown(), 0);
     return reactor;
   }
   // Refused before queueing and decoding: callers without a valid token never take a worker's time.
   if (grpc::Status denied = access_.authorize(*context, rpc, needed); !denied.ok()) {
-    --running_calls_;
     finish(context, reactor, rpc, requestId(""), denied, 0);
     return reactor;
   }
-  context_.pool.submit([this, context, reactor, rpc, request_bytes, response_bytes, work = std::move(work)]() mutable {
+  auto call = [this, context, reactor, rpc, needed, request_bytes, response_bytes, work = std::move(work)]() mutable {
     const auto start = std::chrono::steady_clock::now();
     grpc::Status status;
     std::string request_id;
     try {
+      // First: a call whose caller gave up (also one whose deadline passed before its request was
+      // read, which leaves the request empty) is answered as such, never as bad input.
+      const ShouldStop stopped = context_.stopper(context);
+      throwIfStopped(stopped, rpc);
       Request request;
       decodeMessage(*request_bytes, std::string(rpc) + ": the request", &request);
       if constexpr (std::is_same_v<Request, v1::RecognizeRequest>) request_id = request.request_id();
       request_id = requestId(request_id);
-      // A call that waited in the queue past its deadline is not worth starting.
-      throwIfStopped(callStopper(context), rpc);
       Response response;
       work(request, &response, request_id);
+      // An answer nobody waits for any more is counted as what it is (a change to the models
+      // has happened, though: it is reported as done).
+      if (needed != Access::kAdmin) throwIfStopped(stopped, rpc);
       encodeMessage(response, response_bytes);
     } catch (...) {
-      status = withDeadlineReason(context, statusFromCurrentException());
+      status = context_.whyStopped(context, statusFromCurrentException());
     }
     if (request_id.empty()) request_id = requestId("");
-    // Before Finish: once the last call finished, the server (and this service) may be destroyed.
-    last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
-    --running_calls_;
     finish(context, reactor, rpc, request_id, status,
            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  });
+  };
+  switch (runs_on) {
+    case RunsOn::kCallbackThread:
+      call();
+      break;
+    case RunsOn::kWorkers:
+      context_.pool.submit(std::move(call));
+      break;
+    case RunsOn::kAdminThread:
+      context_.admin_pool.submit(std::move(call));
+      break;
+  }
   return reactor;
 }
 
@@ -74,9 +116,13 @@ void RecognizerService::beginShutdown() {
   streams_.shutDown();
 }
 
+void RecognizerService::abandonRunning() { abandoned_ = true; }
+
+size_t RecognizerService::openCalls() const { return open_calls_ + streams_.size(); }
+
 bool RecognizerService::idle(std::chrono::milliseconds quiet) const {
   const auto last = std::chrono::steady_clock::time_point(std::chrono::steady_clock::duration(last_call_.load()));
-  return running_calls_ == 0 && streams_.size() == 0 && std::chrono::steady_clock::now() - last >= quiet;
+  return openCalls() == 0 && std::chrono::steady_clock::now() - last >= quiet;
 }
 
 void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor,
@@ -93,24 +139,25 @@ void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::Serve
 grpc::ServerUnaryReactor* RecognizerService::Recognize(grpc::CallbackServerContext* context, const Raw* request,
                                                        Raw* response) {
   return unary<v1::RecognizeRequest, v1::RecognizeResponse>(
-      context, "Recognize", Access::kUser, request, response,
+      context, "Recognize", Access::kUser, RunsOn::kWorkers, request, response,
       [this, context](const v1::RecognizeRequest& request, v1::RecognizeResponse* response,
                       const std::string& request_id) {
+        if (!request.has_scene()) throw Error(ErrorCode::kInvalidInput, "Recognize: no scene given");
         response->set_request_id(request_id);
-        context_.recognize(request_id, request.scene(), request.options(), callStopper(context),
+        context_.recognize(request_id, request.scene(), request.options(), context_.stopper(context),
                            response->mutable_result());
       });
 }
 
 grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* RecognizerService::StreamFrames(
     grpc::CallbackServerContext* context) {
-  last_call_ = std::chrono::steady_clock::now().time_since_epoch().count();
+  touch();
   std::unique_ptr<StreamSlot> slot;
   if (grpc::Status denied = access_.openStream(*context, &slot); !denied.ok()) {
     context_.metrics.recordRequest("StreamFrames", denied.error_code(), 0);
     spdlog::warn("StreamFrames from {} refused: {}: {}", context->peer(), statusCodeName(denied.error_code()),
                  denied.error_message());
-    return new RejectedStream(denied);
+    return new RejectedStream(*this, denied);  // deletes itself in OnDone
   }
   return new FrameStream(context_, context, std::move(slot), streams_);  // deletes itself in OnDone
 }
@@ -118,7 +165,7 @@ grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* RecognizerService::
 grpc::ServerUnaryReactor* RecognizerService::ListModels(grpc::CallbackServerContext* context, const Raw* request,
                                                         Raw* response) {
   return unary<v1::ListModelsRequest, v1::ListModelsResponse>(
-      context, "ListModels", Access::kUser, request, response,
+      context, "ListModels", Access::kUser, RunsOn::kCallbackThread, request, response,
       [this](const v1::ListModelsRequest&, v1::ListModelsResponse* response, const std::string&) {
         for (const auto& model : context_.models.list()) *response->add_models() = model->info;
       });
@@ -127,7 +174,7 @@ grpc::ServerUnaryReactor* RecognizerService::ListModels(grpc::CallbackServerCont
 grpc::ServerUnaryReactor* RecognizerService::GetModel(grpc::CallbackServerContext* context, const Raw* request,
                                                       Raw* response) {
   return unary<v1::GetModelRequest, v1::ModelInfo>(
-      context, "GetModel", Access::kUser, request, response,
+      context, "GetModel", Access::kUser, RunsOn::kCallbackThread, request, response,
       [this](const v1::GetModelRequest& request, v1::ModelInfo* response, const std::string&) {
         *response = context_.models.get(request.name())->info;
       });
@@ -136,12 +183,12 @@ grpc::ServerUnaryReactor* RecognizerService::GetModel(grpc::CallbackServerContex
 grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerContext* context, const Raw* request,
                                                        Raw* response) {
   return unary<v1::LoadModelRequest, v1::ModelInfo>(
-      context, "LoadModel", Access::kAdmin, request, response,
+      context, "LoadModel", Access::kAdmin, RunsOn::kAdminThread, request, response,
       [this](const v1::LoadModelRequest& request, v1::ModelInfo* response, const std::string& request_id) {
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: name is empty");
         if (request.path().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: path is empty");
         *response = context_.models.load(request.name(), request.path())->info;
-        context_.metrics.setLoadedModels(context_.models.size());
+        modelsChanged();
         spdlog::info("[{}] loaded model {}@{} from {} in {:.1f}ms", request_id, response->name(),
                      response->version(), response->path(), response->load_ms());
       });
@@ -150,11 +197,11 @@ grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerConte
 grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerContext* context, const Raw* request,
                                                          Raw* response) {
   return unary<v1::UnloadModelRequest, v1::UnloadModelResponse>(
-      context, "UnloadModel", Access::kAdmin, request, response,
+      context, "UnloadModel", Access::kAdmin, RunsOn::kAdminThread, request, response,
       [this](const v1::UnloadModelRequest& request, v1::UnloadModelResponse*, const std::string& request_id) {
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "UnloadModel: name is empty");
         context_.models.unload(request.name());
-        context_.metrics.setLoadedModels(context_.models.size());
+        modelsChanged();
         spdlog::info("[{}] unloaded model {}", request_id, request.name());
       });
 }
@@ -162,7 +209,7 @@ grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerCon
 grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerContext* context, const Raw* request,
                                                           Raw* response) {
   return unary<v1::ReloadModelsRequest, v1::ReloadModelsResponse>(
-      context, "ReloadModels", Access::kAdmin, request, response,
+      context, "ReloadModels", Access::kAdmin, RunsOn::kAdminThread, request, response,
       [this](const v1::ReloadModelsRequest&, v1::ReloadModelsResponse* response, const std::string& request_id) {
         for (const auto& failure : context_.models.reload()) {
           auto* out = response->add_failures();
@@ -172,7 +219,7 @@ grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerCo
           spdlog::warn("[{}] reload of {} failed: {}", request_id, failure.path, failure.message);
         }
         for (const auto& model : context_.models.list()) *response->add_models() = model->info;
-        context_.metrics.setLoadedModels(context_.models.size());
+        modelsChanged();
         spdlog::info("[{}] reloaded: {} models, {} failures", request_id, response->models_size(),
                      response->failures_size());
       });

@@ -26,7 +26,7 @@ using RawFurnitureRecognizer = v1::FurnitureRecognizer::WithRawCallbackMethod_Re
 class RecognizerService final : public RawFurnitureRecognizer {
  public:
   // `access` decides who may call; it must outlive every call (streams hold slots in it).
-  RecognizerService(ServiceContext context, AccessControl& access) : context_(context), access_(access) {}
+  RecognizerService(ServiceContext context, AccessControl& access);
 
   using Raw = grpc::ByteBuffer;
   grpc::ServerUnaryReactor* Recognize(grpc::CallbackServerContext* context, const Raw* request, Raw* response) override;
@@ -40,31 +40,46 @@ class RecognizerService final : public RawFurnitureRecognizer {
   grpc::ServerUnaryReactor* ReloadModels(grpc::CallbackServerContext* context, const Raw* request,
                                          Raw* response) override;
 
-  // The first step of a shutdown, before grpc::Server::Shutdown: new calls get UNAVAILABLE and
-  // open streams end (see OpenStreams::shutDown), while running calls go on. gRPC's own drain
-  // would wait for the streams until its deadline, and answers a call that arrives once it has
-  // begun with CANCELLED (grpc/grpc#41785), which clients do not retry.
+  // The first step of a shutdown: new calls get UNAVAILABLE and open streams end (see
+  // OpenStreams::shutDown), while running calls go on.
   void beginShutdown();
-  // After beginShutdown: no call running, no stream open, and none arrived for `quiet` (a
-  // client answered last may be sending its next call right now: it should be refused here, not
-  // reach gRPC's shutdown).
+  // Past the drain time: the work still running stops, and its calls end UNAVAILABLE.
+  void abandonRunning();
+  // Unary calls and streams gRPC is not done with yet.
+  size_t openCalls() const;
+  // After beginShutdown: no call open and none arrived for `quiet` (a client answered last may
+  // be sending its next call right now: it should be refused here rather than find the server
+  // gone).
   bool idle(std::chrono::milliseconds quiet) const;
 
  private:
-  // Checks the caller's token, then on the pool decodes the request, runs
+  // Where a unary call's work runs. Recognitions take the workers; changes to the models (file
+  // reads) take a thread of their own, so that they never hold up a recognition nor wait for
+  // one; a lookup in the model map is quick enough for gRPC's own thread.
+  enum class RunsOn { kCallbackThread, kWorkers, kAdminThread };
+
+  // Checks the caller's token, then where `runs_on` says decodes the request, runs
   // `work(request, &response, request_id)` and encodes the response; maps what it throws,
   // records metrics, logs failures.
   template <typename Request, typename Response, typename Work>
   grpc::ServerUnaryReactor* unary(grpc::CallbackServerContext* context, const char* rpc, Access needed,
-                                  const Raw* request_bytes, Raw* response_bytes, Work work);
+                                  RunsOn runs_on, const Raw* request_bytes, Raw* response_bytes, Work work);
   void finish(grpc::CallbackServerContext* context, grpc::ServerUnaryReactor* reactor, const char* rpc,
               const std::string& request_id, const grpc::Status& status, double seconds);
+
+  template <typename Reactor>
+  class Counted;
+  class UnaryCall;
+  class RejectedStream;
+  void touch();  // a call arrived or ended
+  void modelsChanged();
 
   ServiceContext context_;
   AccessControl& access_;
   OpenStreams streams_;
   std::atomic<bool> shutting_down_{false};
-  std::atomic<size_t> running_calls_{0};  // unary calls accepted and not finished
+  std::atomic<bool> abandoned_{false};
+  std::atomic<size_t> open_calls_{0};  // unary calls from their handler to their OnDone
   std::atomic<std::chrono::steady_clock::rep> last_call_{0};  // when the last call arrived or ended
 };
 

@@ -40,18 +40,31 @@ void ServiceContext::recognize(const std::string& request_id, const v1::Scene& s
                result.timings.total(), stages);
 }
 
-ShouldStop callStopper(grpc::CallbackServerContext* context, const std::atomic<bool>* stopped) {
-  return [context, stopped] {
-    return context->IsCancelled() || std::chrono::system_clock::now() > context->deadline() ||
-           (stopped != nullptr && stopped->load());
+ShouldStop ServiceContext::stopper(grpc::CallbackServerContext* context, const std::atomic<bool>* also) const {
+  return [this, context, also] {
+    return context->IsCancelled() || std::chrono::system_clock::now() > context->deadline() || workAbandoned() ||
+           (also != nullptr && also->load());
   };
 }
 
-grpc::Status withDeadlineReason(grpc::CallbackServerContext* context, grpc::Status status) {
-  if (status.error_code() == grpc::StatusCode::CANCELLED && std::chrono::system_clock::now() > context->deadline()) {
+grpc::Status ServiceContext::whyStopped(grpc::CallbackServerContext* context, grpc::Status status) const {
+  if (status.error_code() != grpc::StatusCode::CANCELLED) return status;
+  if (std::chrono::system_clock::now() > context->deadline()) {
     return {grpc::StatusCode::DEADLINE_EXCEEDED, "deadline exceeded: " + status.error_message()};
   }
+  if (workAbandoned() && !context->IsCancelled()) return givenUpAtShutdown();
   return status;
+}
+
+grpc::Status refusedWhileShuttingDown() {
+  return {grpc::StatusCode::UNAVAILABLE,
+          "the server is shutting down: send the call again (to another server, or after the restart)"};
+}
+
+grpc::Status givenUpAtShutdown() {
+  return {grpc::StatusCode::UNAVAILABLE,
+          "the server shut down before this call finished (its drain time was over): send the call again (to "
+          "another server, or after the restart)"};
 }
 
 std::string requestId(const std::string& given) {

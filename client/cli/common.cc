@@ -8,10 +8,13 @@
 #include <cstring>
 #include <filesystem>
 #include <limits>
+#include <map>
 
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
 #include "core/io/file_bytes.h"
+#include "proto/wire/enums.h"
+#include "proto/wire/messages.h"
 
 namespace ism::client {
 
@@ -65,12 +68,19 @@ std::string statusName(grpc::StatusCode code) {
   return absl::StatusCodeToString(static_cast<absl::StatusCode>(code));
 }
 
+namespace {
+
+// The names core gives the strategy's enums ("global", "knn", "lw"...), for the flags.
+template <typename Enum>
+CLI::Validator byName(std::initializer_list<Enum> values) {
+  std::map<std::string, Enum> names;
+  for (Enum value : values) names[toString(value)] = value;
+  return CLI::CheckedTransformer(names).description("");
+}
+
+}  // namespace
+
 void RecognitionFlags::add(CLI::App* app) {
-  intrinsics.set_fx(525.0f);
-  intrinsics.set_fy(525.0f);
-  intrinsics.set_cx(319.5f);
-  intrinsics.set_cy(239.5f);
-  intrinsics.set_depth_scale(1000.0f);
   app->add_option_function<std::string>("--model", [this](const std::string& v) { options.set_model(v); },
                                         "model name (default: the only or 'default' one)");
   app->add_option("--category", categories, "categories to look for (repeatable; default: all)");
@@ -78,11 +88,13 @@ void RecognitionFlags::add(CLI::App* app) {
   app->add_option_function<unsigned>("--max-hypotheses", [this](unsigned v) { options.set_max_hypotheses(v); },
                                      "at most this many hypotheses, best first");
   app->add_option("--codebook", codebook, "global or separated")
-      ->check(CLI::IsMember({"global", "separated"}))
-      ->capture_default_str();
+      ->type_name("NAME")
+      ->transform(byName({CodebookType::kGlobal, CodebookType::kSeparated}))
+      ->default_str(toString(codebook));
   app->add_option("--activation", activation, "knn or cutoff")
-      ->check(CLI::IsMember({"knn", "cutoff"}))
-      ->capture_default_str();
+      ->type_name("NAME")
+      ->transform(byName({ActivationStrategy::kKnn, ActivationStrategy::kCutoff}))
+      ->default_str(toString(activation));
   app->add_option_function<int>("--k", [this](int v) { options.mutable_strategy()->set_k(v); },
                                 "kNN activation: codewords per descriptor (default: the model's)")
       ->check(CLI::PositiveNumber);
@@ -90,20 +102,18 @@ void RecognitionFlags::add(CLI::App* app) {
                                   "cutoff activation: descriptor distance (default: the model's)")
       ->check(CLI::PositiveNumber);
   app->add_option("--weighting", weighting, "vote weights: cw, lw or aw")
-      ->check(CLI::IsMember({"cw", "lw", "aw"}))
-      ->capture_default_str();
+      ->type_name("NAME")
+      ->transform(byName({VoteWeighting::kCategorization, VoteWeighting::kLocalization, VoteWeighting::kActivation}))
+      ->default_str(toString(weighting));
   app->add_flag_function("--keypoints", [this](int64_t) { options.set_return_keypoints(true); },
                          "return each hypothesis' supporting keypoints");
   app->add_flag("--no-box-selection", no_box_selection, "also return hypotheses whose box fails the test");
-  auto intrinsic = [&](const char* name, void (v1::CameraIntrinsics::*set)(float), const char* help) {
-    app->add_option_function<float>(name, [this, set](float v) { (intrinsics.*set)(v); }, help);
-  };
-  intrinsic("--fx", &v1::CameraIntrinsics::set_fx, "depth PNG focal length x (px, default 525)");
-  intrinsic("--fy", &v1::CameraIntrinsics::set_fy, "depth PNG focal length y (px, default 525)");
-  intrinsic("--cx", &v1::CameraIntrinsics::set_cx, "depth PNG principal point x (px, default 319.5)");
-  intrinsic("--cy", &v1::CameraIntrinsics::set_cy, "depth PNG principal point y (px, default 239.5)");
-  intrinsic("--depth-scale", &v1::CameraIntrinsics::set_depth_scale,
-            "depth PNG units per metre (default 1000; 5000 for TUM RGB-D)");
+  app->add_option("--fx", intrinsics.fx, "depth PNG focal length x (px)")->capture_default_str();
+  app->add_option("--fy", intrinsics.fy, "depth PNG focal length y (px)")->capture_default_str();
+  app->add_option("--cx", intrinsics.cx, "depth PNG principal point x (px)")->capture_default_str();
+  app->add_option("--cy", intrinsics.cy, "depth PNG principal point y (px)")->capture_default_str();
+  app->add_option("--depth-scale", intrinsics.depth_scale, "depth PNG units per metre (5000 for TUM RGB-D)")
+      ->capture_default_str();
 }
 
 v1::RecognitionOptions RecognitionFlags::build() const {
@@ -112,11 +122,9 @@ v1::RecognitionOptions RecognitionFlags::build() const {
   if (!std::isnan(min_score)) out.set_min_score(min_score);
   if (no_box_selection) out.set_box_selection(false);
   auto* s = out.mutable_strategy();
-  s->set_codebook(codebook == "separated" ? v1::CODEBOOK_TYPE_SEPARATED : v1::CODEBOOK_TYPE_GLOBAL);
-  s->set_activation(activation == "cutoff" ? v1::ACTIVATION_STRATEGY_CUTOFF : v1::ACTIVATION_STRATEGY_KNN);
-  s->set_weighting(weighting == "cw"   ? v1::VOTE_WEIGHTING_CATEGORIZATION
-                   : weighting == "aw" ? v1::VOTE_WEIGHTING_ACTIVATION
-                                       : v1::VOTE_WEIGHTING_LOCALIZATION);
+  s->set_codebook(wire::toProto(codebook));
+  s->set_activation(wire::toProto(activation));
+  s->set_weighting(wire::toProto(weighting));
   return out;
 }
 
@@ -152,19 +160,12 @@ v1::Scene cloudMessage(const Scene& scene) {
     const float point[3] = {p.x, p.y, p.z};
     std::memcpy(xyz_out + slot * sizeof point, point, sizeof point);
   }
-  auto* origin = message.mutable_sensor_origin();
-  origin->set_x(scene.sensor_origin.x());
-  origin->set_y(scene.sensor_origin.y());
-  origin->set_z(scene.sensor_origin.z());
-  auto* q = message.mutable_sensor_orientation();
-  q->set_w(scene.sensor_orientation.w());
-  q->set_x(scene.sensor_orientation.x());
-  q->set_y(scene.sensor_orientation.y());
-  q->set_z(scene.sensor_orientation.z());
+  wire::toProto(scene.sensor_origin, message.mutable_sensor_origin());
+  wire::toProto(scene.sensor_orientation, message.mutable_sensor_orientation());
   return message;
 }
 
-FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& intrinsics, bool decode_png) {
+FileScene sceneFromFile(const std::string& path, const DepthIntrinsics& intrinsics, bool decode_png) {
   FileScene out;
   std::string extension = std::filesystem::path(path).extension().string();
   for (auto& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
@@ -172,16 +173,12 @@ FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& int
     auto* depth = out.message.mutable_depth();
     depth->set_encoding(v1::DEPTH_ENCODING_PNG);
     depth->set_data(readFileBytes(path));
-    *depth->mutable_intrinsics() = intrinsics;
+    // Checked here as the server would, so that a wrong flag fails before anything is sent.
+    *depth->mutable_intrinsics() = wire::intrinsicsToProto(intrinsics);
+    wire::intrinsicsFromProto(depth->intrinsics(), "intrinsics");
     if (decode_png) {
-      DepthIntrinsics k;
-      k.fx = intrinsics.fx();
-      k.fy = intrinsics.fy();
-      k.cx = intrinsics.cx();
-      k.cy = intrinsics.cy();
-      k.depth_scale = intrinsics.depth_scale();
-      out.scene = decodeDepthPng(depth->data(), k, path);
-      static_cast<PinholeIntrinsics&>(out.camera) = k;
+      out.scene = decodeDepthPng(depth->data(), intrinsics, path);
+      static_cast<PinholeIntrinsics&>(out.camera) = intrinsics;
       out.camera.width = out.scene.image_width;
       out.camera.height = out.scene.image_height;
     }

@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "core/common/types.h"
+#include "core/io/cloud_io.h"
+#include "core/model/model.h"
 #include "core/report/report.h"
 #include "ism/v1/service.pb.h"
 
@@ -44,9 +46,11 @@ struct RecognitionFlags {
   v1::RecognitionOptions options;
   std::vector<std::string> categories;
   float min_score = NAN;
-  std::string codebook = "global", activation = "knn", weighting = "lw";
+  CodebookType codebook = CodebookType::kGlobal;
+  ActivationStrategy activation = ActivationStrategy::kKnn;
+  VoteWeighting weighting = VoteWeighting::kLocalization;
   bool no_box_selection = false;
-  v1::CameraIntrinsics intrinsics;
+  DepthIntrinsics intrinsics;  // of depth PNGs
 
   void add(CLI::App* app);
   v1::RecognitionOptions build() const;
@@ -64,6 +68,6 @@ struct FileScene {
   PictureParams camera;  // the sensor the picture is drawn from
 };
 
-FileScene sceneFromFile(const std::string& path, const v1::CameraIntrinsics& intrinsics, bool decode_png);
+FileScene sceneFromFile(const std::string& path, const DepthIntrinsics& intrinsics, bool decode_png);
 
 }  // namespace ism::client

@@ -5,10 +5,11 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 #include <vector>
+
+#include "core/io/file_bytes.h"
+#include "proto/wire/messages.h"
 
 namespace ism::client {
 namespace fs = std::filesystem;
@@ -22,15 +23,11 @@ class PngFolder final : public FrameSource {
   std::optional<SourceFrame> next() override {
     if (index_ >= files_.size()) return std::nullopt;
     const fs::path& file = files_[index_++];
-    std::ifstream in(file, std::ios::binary);
-    std::stringstream bytes;
-    bytes << in.rdbuf();
-    if (!in) throw std::runtime_error("cannot read " + file.string());
     SourceFrame frame;
     frame.name = file.filename().string();
     auto* depth = frame.scene.mutable_depth();
     depth->set_encoding(v1::DEPTH_ENCODING_PNG);
-    depth->set_data(bytes.str());
+    depth->set_data(readFileBytes(file.string()));
     *depth->mutable_intrinsics() = intrinsics_;
     // TUM names frames by their capture time in seconds ("1305031102.160407.png").
     try {
@@ -123,12 +120,13 @@ class OpenNiSource final : public FrameSource {
     for (int row = 0; row < height; ++row) {
       std::copy_n(src + size_t(row) * frame.getStrideInBytes(), width * 2, data->data() + size_t(row) * width * 2);
     }
-    auto* k = depth->mutable_intrinsics();
-    k->set_fx(width / (2.0f * std::tan(depth_.getHorizontalFieldOfView() / 2)));
-    k->set_fy(height / (2.0f * std::tan(depth_.getVerticalFieldOfView() / 2)));
-    k->set_cx(width / 2.0f - 0.5f);
-    k->set_cy(height / 2.0f - 0.5f);
-    k->set_depth_scale(format == openni::PIXEL_FORMAT_DEPTH_1_MM ? 1000.0f : 10000.0f);
+    DepthIntrinsics k;
+    k.fx = width / (2.0f * std::tan(depth_.getHorizontalFieldOfView() / 2));
+    k.fy = height / (2.0f * std::tan(depth_.getVerticalFieldOfView() / 2));
+    k.cx = width / 2.0f - 0.5f;
+    k.cy = height / 2.0f - 0.5f;
+    k.depth_scale = format == openni::PIXEL_FORMAT_DEPTH_1_MM ? 1000.0f : 10000.0f;
+    *depth->mutable_intrinsics() = wire::intrinsicsToProto(k);
     return out;
   }
 
@@ -143,7 +141,9 @@ class OpenNiSource final : public FrameSource {
 
 }  // namespace
 
-std::unique_ptr<FrameSource> openPngFolder(const std::string& directory, const v1::CameraIntrinsics& intrinsics) {
+std::unique_ptr<FrameSource> openPngFolder(const std::string& directory, const DepthIntrinsics& intrinsics) {
+  v1::CameraIntrinsics message = wire::intrinsicsToProto(intrinsics);
+  wire::intrinsicsFromProto(message, "intrinsics");  // a wrong flag fails before any frame is sent
   fs::path root = fs::is_directory(fs::path(directory) / "depth") ? fs::path(directory) / "depth" : fs::path(directory);
   if (!fs::is_directory(root)) throw std::runtime_error(directory + " is not a directory");
   std::vector<fs::path> files;
@@ -152,7 +152,7 @@ std::unique_ptr<FrameSource> openPngFolder(const std::string& directory, const v
   }
   if (files.empty()) throw std::runtime_error("no .png files in " + root.string());
   std::sort(files.begin(), files.end());
-  return std::make_unique<PngFolder>(root.string(), std::move(files), intrinsics);
+  return std::make_unique<PngFolder>(root.string(), std::move(files), std::move(message));
 }
 
 std::unique_ptr<FrameSource> openOpenNi(const std::string& uri) { return std::make_unique<OpenNiSource>(uri); }

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "core/io/cloud_io.h"
 #include "ism/v1/service.pb.h"
 
 namespace ism::client {
@@ -25,8 +26,9 @@ class FrameSource {
 };
 
 // depth/*.png when DIR/depth exists (TUM RGB-D), else DIR/*.png; sorted by name. The PNG
-// bytes are sent as they are. Throws std::runtime_error when there is no PNG.
-std::unique_ptr<FrameSource> openPngFolder(const std::string& directory, const v1::CameraIntrinsics& intrinsics);
+// bytes are sent as they are. Throws std::runtime_error when there is no PNG, ism::Error when the
+// intrinsics are not valid.
+std::unique_ptr<FrameSource> openPngFolder(const std::string& directory, const DepthIntrinsics& intrinsics);
 
 // `uri` empty: the first sensor found; a path ending in .oni: that recording. Intrinsics come
 // from the device's field of view and depth units. Throws std::runtime_error with OpenNI2's

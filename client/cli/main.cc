@@ -2,24 +2,19 @@
 #include <grpcpp/grpcpp.h>
 
 #include <CLI/CLI.hpp>
-#include <atomic>
-#include <chrono>
-#include <cstring>
 #include <exception>
 #include <filesystem>
-#include <iomanip>
 #include <iostream>
-#include <map>
-#include <mutex>
-#include <thread>
 
 #include "client/cli/bench.h"
 #include "client/cli/common.h"
 #include "client/cli/frame_source.h"
 #include "client/cli/output.h"
+#include "client/cli/stream.h"
 #include "core/report/report.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "ism/v1/service.grpc.pb.h"
+#include "proto/wire/messages.h"
 
 namespace {
 
@@ -88,7 +83,7 @@ int runRecognize(const Connection& connection, const std::vector<std::string>& f
     if (!picture.empty()) {
       const std::string path = picturePath(picture, file, files.size());
       try {
-        ism::savePicture(scene.scene, ism::client::fromProto(response.result()).hypotheses, path, scene.camera);
+        ism::savePicture(scene.scene, ism::wire::resultFromProto(response.result()).hypotheses, path, scene.camera);
       } catch (const std::exception& e) {
         std::cerr << "error: " << e.what() << "\n";
         if (exit_code == 0) exit_code = kLocalFailure;
@@ -96,173 +91,6 @@ int runRecognize(const Connection& connection, const std::vector<std::string>& f
     }
   }
   return exit_code;
-}
-
-// A frame sent on a stream and not answered yet: sent again after a reconnection.
-struct SentFrame {
-  int64_t timestamp_us = 0;
-  ism::v1::Scene scene;
-};
-
-constexpr auto kFirstReconnectDelay = std::chrono::milliseconds(250);
-constexpr auto kMaxReconnectDelay = std::chrono::seconds(8);
-
-// Streams frames; when the stream breaks with UNAVAILABLE (server restarted, crashed, or shut down
-// for an update), opens a new one after a growing delay, sends the frames that had no result yet
-// and goes on with the source. Gives up after `reconnect_attempts` failures in a row.
-int runStream(const Connection& connection, std::unique_ptr<ism::client::FrameSource> source,
-              const RecognitionFlags& flags, bool latest_wins, uint64_t max_frames, int reconnect_attempts) {
-  std::cerr << "streaming " << source->describe() << " (" << (latest_wins ? "latest frame wins" : "every frame")
-            << ")\n";
-  std::mutex mutex;  // guards what follows, shared by the writer and the reader
-  std::map<uint64_t, SentFrame> unanswered;  // by frame id
-  uint64_t taken = 0;                        // frames taken from the source so far
-  bool source_done = false;
-  std::exception_ptr source_error;
-  uint64_t received = 0, skipped = 0, failed = 0, reconnections = 0;
-  const auto start = std::chrono::steady_clock::now();
-  grpc::Status status;
-  // With `mutex` held: nothing more to take from the source.
-  auto exhausted = [&] { return source_done || (max_frames > 0 && taken >= max_frames); };
-
-  for (int failures_in_a_row = 0;;) {
-    // A reconnection gets a channel of its own: the old one may still be backing off from the
-    // server it lost, and would fail the new call at once.
-    auto stub = FurnitureRecognizer::NewStub(connection.channel(/*own_connection=*/reconnections > 0));
-    grpc::ClientContext context;
-    connection.prepare(&context);
-    auto stream = stub->StreamFrames(&context);
-    bool answered_any = false;
-
-    std::thread writer([&] {
-      ism::v1::StreamFramesRequest request;
-      auto* settings = request.mutable_settings();
-      settings->set_policy(latest_wins ? ism::v1::BACKPRESSURE_POLICY_LATEST_FRAME_WINS
-                                       : ism::v1::BACKPRESSURE_POLICY_EVERY_FRAME);
-      *settings->mutable_options() = flags.build();
-      // Never called with `mutex` held: Write waits for flow control, which waits for the reader.
-      auto send = [&](uint64_t id, const SentFrame& frame) {
-        request.set_frame_id(id);
-        request.set_timestamp_us(frame.timestamp_us);
-        *request.mutable_scene() = frame.scene;
-        const bool ok = stream->Write(request);
-        request.clear_settings();  // the first message of each stream carries them
-        return ok;
-      };
-      try {
-        std::vector<std::pair<uint64_t, SentFrame>> again;
-        {
-          std::lock_guard<std::mutex> lock(mutex);
-          again.assign(unanswered.begin(), unanswered.end());
-        }
-        bool open = true;
-        for (const auto& [id, frame] : again) {
-          if (!(open = send(id, frame))) break;  // the call is over; Finish says why
-        }
-        while (open) {
-          {
-            std::lock_guard<std::mutex> lock(mutex);
-            if (exhausted()) break;
-          }
-          auto next = source->next();
-          if (!next) {
-            std::lock_guard<std::mutex> lock(mutex);
-            source_done = true;
-            break;
-          }
-          SentFrame frame{next->timestamp_us, std::move(next->scene)};
-          uint64_t id;
-          {
-            std::lock_guard<std::mutex> lock(mutex);
-            id = ++taken;
-            unanswered[id] = frame;
-          }
-          open = send(id, frame);
-        }
-      } catch (...) {
-        std::lock_guard<std::mutex> lock(mutex);
-        source_error = std::current_exception();
-        source_done = true;
-      }
-      stream->WritesDone();
-    });
-
-    ism::v1::FrameResult result;
-    while (stream->Read(&result)) {
-      {
-        std::lock_guard<std::mutex> lock(mutex);
-        unanswered.erase(result.frame_id());
-        for (auto id : result.skipped_frame_ids()) unanswered.erase(id);
-      }
-      answered_any = true;
-      ++received;
-      skipped += result.skipped_frame_ids_size();
-      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-      if (connection.json) {
-        std::cout << ism::client::toJson(result) << std::endl;  // a line per result as it comes, also into a pipe
-        continue;
-      }
-      std::cout << "frame " << result.frame_id() << ": ";
-      if (result.has_error()) {
-        ++failed;
-        std::cout << "error " << statusName(static_cast<grpc::StatusCode>(result.error().code())) << ": "
-                  << result.error().message();
-      } else {
-        std::cout << result.result().hypotheses_size() << " hypotheses";
-        for (const auto& h : result.result().hypotheses()) {
-          std::cout << " [" << h.category() << " " << std::fixed << std::setprecision(2) << h.score() << " at ("
-                    << h.center().x() << ", " << h.center().y() << ", " << h.center().z() << ")]";
-        }
-        std::cout << std::fixed << std::setprecision(1) << ", " << result.result().total_ms() << " ms";
-      }
-      if (result.skipped_frame_ids_size() > 0) {
-        std::cout << ", skipped";
-        for (auto id : result.skipped_frame_ids()) std::cout << " " << id;
-      }
-      std::cout << std::fixed << std::setprecision(1) << " (" << received / elapsed << " fps)" << std::endl;
-    }
-    writer.join();
-    status = stream->Finish();
-
-    std::unique_lock<std::mutex> lock(mutex);
-    if (status.error_code() != grpc::StatusCode::UNAVAILABLE || source_error) break;
-    if (exhausted() && unanswered.empty()) {
-      status = grpc::Status::OK;  // broke after the last answer: nothing is missing
-      break;
-    }
-    if (answered_any) failures_in_a_row = 0;
-    if (++failures_in_a_row > reconnect_attempts) {
-      status = grpc::Status(status.error_code(),
-                            status.error_message() + " (gave up after " + std::to_string(reconnect_attempts) +
-                                " reconnection attempts; " + std::to_string(unanswered.size()) +
-                                " frames sent were not answered)");
-      break;
-    }
-    auto delay = kFirstReconnectDelay * (1 << std::min(failures_in_a_row - 1, 10));
-    if (delay > kMaxReconnectDelay) delay = std::chrono::duration_cast<std::chrono::milliseconds>(kMaxReconnectDelay);
-    std::cerr << "stream broke: " << statusName(status.error_code()) << ": " << status.error_message() << "; "
-              << unanswered.size() << " frames unanswered; reconnecting in " << std::fixed << std::setprecision(2)
-              << std::chrono::duration<double>(delay).count() << " s (attempt " << failures_in_a_row << " of "
-              << reconnect_attempts << ")\n";
-    lock.unlock();
-    std::this_thread::sleep_for(delay);
-    ++reconnections;
-  }
-
-  const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  std::cerr << taken << " frames sent, " << received << " results (" << failed << " failed), " << skipped
-            << " skipped, " << reconnections << " reconnections, " << std::fixed << std::setprecision(2)
-            << received / elapsed << " results/s over " << elapsed << " s\n";
-  if (!status.ok()) return fail("stream", status);
-  if (source_error) {
-    try {
-      std::rethrow_exception(source_error);
-    } catch (const std::exception& e) {
-      std::cerr << "error: " << e.what() << "\n";
-    }
-    return kLocalFailure;
-  }
-  return 0;
 }
 
 int runModels(const Connection& connection, const std::string& show) {
@@ -329,7 +157,6 @@ int main(int argc, char** argv) {
   auto* stream = app.add_subcommand("stream", "stream depth frames and print one result per frame");
   std::string device, folder;
   std::string policy = "latest";
-  uint64_t max_frames = 0;
   auto* device_option =
       stream->add_option("--device", device, "OpenNI2 device URI or .oni recording (no value: the first sensor)")
           ->expected(0, 1);
@@ -338,9 +165,9 @@ int main(int argc, char** argv) {
   stream->add_option("--policy", policy, "backpressure: 'every' frame or 'latest' frame wins")
       ->check(CLI::IsMember({"every", "latest"}))
       ->capture_default_str();
-  stream->add_option("--max-frames", max_frames, "stop after this many frames (0: all)");
-  int reconnect_attempts = 6;
-  stream->add_option("--reconnect-attempts", reconnect_attempts,
+  ism::client::StreamParams stream_params;
+  stream->add_option("--max-frames", stream_params.max_frames, "stop after this many frames (0: all)");
+  stream->add_option("--reconnect-attempts", stream_params.reconnect_attempts,
                      "when the stream breaks with UNAVAILABLE (server restarted or gone), reconnect up to this many "
                      "times in a row, waiting 0.25 s, 0.5 s, ... up to 8 s between attempts, and resend the frames "
                      "not answered yet (0: give up at once)")
@@ -383,8 +210,8 @@ int main(int argc, char** argv) {
       }
       auto source = folder.empty() ? ism::client::openOpenNi(device)
                                    : ism::client::openPngFolder(folder, stream_flags.intrinsics);
-      return runStream(connection, std::move(source), stream_flags, policy == "latest", max_frames,
-                       reconnect_attempts);
+      stream_params.latest_wins = policy == "latest";
+      return ism::client::runStream(connection, *source, stream_flags, stream_params);
     }
     if (models->parsed()) return runModels(connection, show->parsed() ? show_name : "");
     if (health->parsed()) return runHealth(connection);

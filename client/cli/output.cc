@@ -1,6 +1,7 @@
 #include "client/cli/output.h"
 
 #include "core/report/report.h"
+#include "proto/wire/messages.h"
 
 #include <google/protobuf/util/json_util.h>
 
@@ -39,36 +40,11 @@ std::string toJson(const google::protobuf::Message& message) {
   return json;
 }
 
-RecognitionResult fromProto(const v1::RecognitionResult& in) {
-  const auto vec3 = [](const v1::Vec3& v) { return Eigen::Vector3f(v.x(), v.y(), v.z()); };
-  RecognitionResult out;
-  for (const auto& h : in.hypotheses()) {
-    Hypothesis& hypothesis = out.hypotheses.emplace_back();
-    hypothesis.category = h.category();
-    hypothesis.score = h.score();
-    hypothesis.threshold = h.threshold();
-    hypothesis.center = vec3(h.center());
-    hypothesis.box.center = vec3(h.box().center());
-    hypothesis.box.size = vec3(h.box().size());
-    const auto& q = h.box().rotation();
-    hypothesis.box.rotation = Eigen::Quaternionf(q.w(), q.x(), q.y(), q.z());
-    hypothesis.support = static_cast<int>(h.support());
-    hypothesis.support_centroid = vec3(h.support_centroid());
-    hypothesis.passed_selection = h.passed_selection();
-    for (const auto& p : h.support_keypoints()) hypothesis.support_keypoints.push_back(vec3(p));
-  }
-  for (const auto& t : in.timings()) out.timings.add(t.stage(), t.ms());
-  out.input_points = in.input_points();
-  out.surface_points = in.surface_points();
-  out.keypoints = in.keypoints();
-  return out;
-}
-
 void printResult(std::ostream& out, const std::string& title, const v1::RecognitionResult& result) {
   out << title << ": " << result.hypotheses_size() << " hypotheses (model " << result.model_name() << "@"
       << result.model_version() << ", " << result.input_points() << " points, " << result.keypoints()
       << " keypoints, " << std::fixed << std::setprecision(1) << result.total_ms() << " ms)\n";
-  const RecognitionResult core = fromProto(result);
+  const RecognitionResult core = wire::resultFromProto(result);
   // The selection column only matters when the caller asked for boxes that fail the test.
   const bool any_failed = std::any_of(core.hypotheses.begin(), core.hypotheses.end(),
                                       [](const Hypothesis& h) { return !h.passed_selection; });

@@ -5,15 +5,11 @@
 #include <ostream>
 #include <string>
 
-#include "core/recognition/recognizer.h"
 #include "ism/v1/service.pb.h"
 
 namespace ism::client {
 
 std::string toJson(const google::protobuf::Message& message);  // one line
-
-// The inverse of the server's conversion, so that core/report can draw and tabulate answers.
-RecognitionResult fromProto(const v1::RecognitionResult& result);
 
 void printResult(std::ostream& out, const std::string& title, const v1::RecognitionResult& result);
 void printModelList(std::ostream& out, const v1::ListModelsResponse& models);

@@ -34,6 +34,10 @@ struct ActivationParams {
   float cutoff = 0.25f;  // kCutoff: every codeword within this Euclidean distance
 };
 
+// Descriptors are unit length and codewords are means of them, no longer than 1: no distance
+// between a descriptor and a codeword exceeds this, so a larger cutoff activates nothing more.
+constexpr float kMaxDescriptorDistance = 2.0f;
+
 struct Activation {
   int keypoint;
   int codeword;

@@ -107,8 +107,9 @@ class ScopedStage {
   std::chrono::steady_clock::time_point start_;
 };
 
-// Polled between stages and inside long loops; returning true makes the pipeline throw
-// Error(kCancelled). The service wires it to the call's deadline and cancellation.
+// Polled between stages and inside long loops, also from several threads at once; returning
+// true makes the pipeline throw Error(kCancelled). The service wires it to the call's deadline
+// and cancellation.
 using ShouldStop = std::function<bool()>;
 void throwIfStopped(const ShouldStop& should_stop, const char* where);
 

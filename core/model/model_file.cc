@@ -1,9 +1,14 @@
 #include "core/model/model_file.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
 #include <zlib.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
+#include <cstring>
 #include <cstdio>
 #include <fstream>
 #include <set>
@@ -11,6 +16,7 @@
 
 #include "core/common/error.h"
 #include "ism/v1/model.pb.h"
+#include "proto/wire/enums.h"
 
 namespace ism {
 namespace {
@@ -64,23 +70,9 @@ void toProto(const GravityParams& g, v1::GravityParams* out) {
 }
 
 void toProto(const ActivationParams& a, v1::ActivationParams* out) {
-  out->set_strategy(a.strategy == ActivationStrategy::kKnn ? v1::ACTIVATION_STRATEGY_KNN
-                                                           : v1::ACTIVATION_STRATEGY_CUTOFF);
+  out->set_strategy(wire::toProto(a.strategy));
   out->set_k(a.k);
   out->set_cutoff(a.cutoff);
-}
-
-v1::CodebookType toProto(CodebookType t) {
-  return t == CodebookType::kGlobal ? v1::CODEBOOK_TYPE_GLOBAL : v1::CODEBOOK_TYPE_SEPARATED;
-}
-
-v1::VoteWeighting toProto(VoteWeighting w) {
-  switch (w) {
-    case VoteWeighting::kCategorization: return v1::VOTE_WEIGHTING_CATEGORIZATION;
-    case VoteWeighting::kLocalization: return v1::VOTE_WEIGHTING_LOCALIZATION;
-    case VoteWeighting::kActivation: return v1::VOTE_WEIGHTING_ACTIVATION;
-  }
-  return v1::VOTE_WEIGHTING_UNSPECIFIED;
 }
 
 // --- proto -> Model, every size checked against the others ---
@@ -222,21 +214,17 @@ class Reader {
   }
 
   ActivationStrategy strategy(int v, const std::string& where) const {
-    if (v == v1::ACTIVATION_STRATEGY_KNN) return ActivationStrategy::kKnn;
-    if (v == v1::ACTIVATION_STRATEGY_CUTOFF) return ActivationStrategy::kCutoff;
+    if (const auto strategy = wire::activationStrategyFromProto(v)) return *strategy;
     fail(where + " has unknown activation strategy " + std::to_string(v));
   }
 
   CodebookType codebookType(int v, const std::string& where) const {
-    if (v == v1::CODEBOOK_TYPE_GLOBAL) return CodebookType::kGlobal;
-    if (v == v1::CODEBOOK_TYPE_SEPARATED) return CodebookType::kSeparated;
+    if (const auto type = wire::codebookTypeFromProto(v)) return *type;
     fail(where + " has unknown codebook type " + std::to_string(v));
   }
 
   VoteWeighting weighting(int v, const std::string& where) const {
-    if (v == v1::VOTE_WEIGHTING_CATEGORIZATION) return VoteWeighting::kCategorization;
-    if (v == v1::VOTE_WEIGHTING_LOCALIZATION) return VoteWeighting::kLocalization;
-    if (v == v1::VOTE_WEIGHTING_ACTIVATION) return VoteWeighting::kActivation;
+    if (const auto weighting = wire::voteWeightingFromProto(v)) return *weighting;
     fail(where + " has unknown vote weighting " + std::to_string(v));
   }
 
@@ -413,10 +401,9 @@ std::string serializeModel(const Model& model) {
     toProto(c.own_votes, out->mutable_own_votes());
     for (const auto& [key, value] : c.thresholds) {
       auto* t = out->add_thresholds();
-      t->set_codebook(toProto(key.codebook));
-      t->set_activation(key.activation == ActivationStrategy::kKnn ? v1::ACTIVATION_STRATEGY_KNN
-                                                                   : v1::ACTIVATION_STRATEGY_CUTOFF);
-      t->set_weighting(toProto(key.weighting));
+      t->set_codebook(wire::toProto(key.codebook));
+      t->set_activation(wire::toProto(key.activation));
+      t->set_weighting(wire::toProto(key.weighting));
       t->set_value(value);
       if (const auto stats = c.threshold_stats.find(key); stats != c.threshold_stats.end()) {
         t->set_mean(stats->second.mean);
@@ -459,11 +446,12 @@ std::string serializeModel(const Model& model) {
   return file.SerializeAsString();
 }
 
-Model parseModel(const std::string& bytes, const std::string& source) {
+ModelFileContents parseModelFile(const std::string& bytes, const std::string& source) {
   const Reader r(source);
   v1::ModelFile file;
   if (!file.ParseFromString(bytes)) r.fail("not a model file or truncated (the ModelFile envelope does not parse)");
-  if (file.magic() != kMagic) r.fail("wrong magic '" + file.magic().substr(0, 32) + "', expected '" + kMagic + "'");
+  // What the file holds instead is not echoed: it may be any file the server can read.
+  if (file.magic() != kMagic) r.fail(std::string("wrong magic: not a model file (they start with '") + kMagic + "')");
   if (file.format_version() == 0 || file.format_version() > kModelFormatVersion) {
     r.fail("format version " + std::to_string(file.format_version()) + " is not supported (this build reads 1.." +
            std::to_string(kModelFormatVersion) + ")");
@@ -471,9 +459,57 @@ Model parseModel(const std::string& bytes, const std::string& source) {
   if (crc32Of(file.payload()) != file.payload_crc32()) {
     r.fail("CRC-32 mismatch (the file is truncated or damaged)");
   }
-  v1::ModelData data;
-  if (!data.ParseFromString(file.payload())) r.fail("the payload does not parse as ModelData");
-  return fromProto(data, source);
+  ModelFileContents out;
+  if (!out.description.ParseFromString(file.payload())) r.fail("the payload does not parse as ModelData");
+  out.model = fromProto(out.description, source);
+  out.format_version = file.format_version();
+  char version[9];
+  std::snprintf(version, sizeof version, "%08x", crc32Of(bytes));
+  out.version = version;
+  v1::ModelData& d = out.description;
+  if (d.has_global_codebook()) d.mutable_global_codebook()->clear_centers();
+  for (auto& category : *d.mutable_categories()) {
+    if (category.has_own_codebook()) category.mutable_own_codebook()->clear_centers();
+    category.clear_global_votes();
+    category.clear_own_votes();
+  }
+  return out;
+}
+
+Model parseModel(const std::string& bytes, const std::string& source) {
+  return std::move(parseModelFile(bytes, source).model);
+}
+
+ModelFileContents readModelFile(const std::string& path, size_t max_bytes) {
+  struct File {
+    int fd;
+    ~File() {
+      if (fd >= 0) ::close(fd);
+    }
+  };
+  // O_NONBLOCK: opening a FIFO must not wait for a writer; fstat then refuses it.
+  const File file{::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC)};
+  struct stat status {};
+  if (file.fd < 0 || ::fstat(file.fd, &status) != 0 || !S_ISREG(status.st_mode)) {
+    throw Error(ErrorCode::kNotFound, path + ": not a readable regular file");
+  }
+  const Error too_large(ErrorCode::kResourceExhausted,
+                        path + ": larger than the " + std::to_string(max_bytes) + " bytes a model file may have here");
+  if (static_cast<uint64_t>(status.st_size) > max_bytes) throw too_large;
+  // One byte more than the limit allows tells a file that grew past it while being read.
+  std::string bytes(std::min<uint64_t>(static_cast<uint64_t>(status.st_size), max_bytes) + 1, '\0');
+  size_t size = 0;
+  while (size < bytes.size()) {
+    const ssize_t n = ::read(file.fd, bytes.data() + size, bytes.size() - size);
+    if (n == 0) break;
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) throw Error(ErrorCode::kIo, path + ": read failed: " + std::strerror(errno));
+    size += static_cast<size_t>(n);
+    if (size == bytes.size() && size <= max_bytes) bytes.resize(std::min(max_bytes + 1, 2 * bytes.size()));
+  }
+  if (size > max_bytes) throw too_large;
+  bytes.resize(size);
+  return parseModelFile(bytes, path);
 }
 
 void saveModel(const Model& model, const std::string& path) {

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <array>
+#include <atomic>
 #include <cmath>
 #include <cstdint>
 #include <iterator>
@@ -13,6 +14,7 @@
 #include <omp.h>
 #endif
 
+#include "core/common/error.h"
 #include "core/common/hash.h"
 #include "core/recognition/box_selection.h"
 #include "core/recognition/voting.h"
@@ -129,6 +131,30 @@ std::vector<Accumulator> perThreadRanges(size_t n, size_t min_per_thread, Body&&
 
 // Below this many keypoints per thread, starting threads costs more than the votes.
 constexpr size_t kKeypointsPerThread = 512;
+
+// A ShouldStop polled by the threads of a loop over keypoints, every few keypoints: casting
+// every vote of a scene can take seconds, and a caller that is gone should not wait for that.
+// Once it says stop, every thread leaves its range and check() throws.
+class LoopStop {
+ public:
+  static constexpr size_t kKeypointsPerPoll = 16;
+
+  explicit LoopStop(const ShouldStop& should_stop) : should_stop_(should_stop) {}
+  // For the i-th keypoint of a thread's range.
+  bool operator()(size_t i) {
+    if (stopped_.load(std::memory_order_relaxed)) return true;
+    if (!should_stop_ || i % kKeypointsPerPoll != 0 || !should_stop_()) return false;
+    stopped_ = true;
+    return true;
+  }
+  void check(const char* stage) const {
+    if (stopped_) throw Error(ErrorCode::kCancelled, std::string("stopped during ") + stage);
+  }
+
+ private:
+  const ShouldStop& should_stop_;
+  std::atomic<bool> stopped_{false};
+};
 
 // Exact floor for |v| < 2^31 without a libm call, so that the loops over a chunk vectorise.
 inline int32_t floorToInt(float v) {
@@ -410,19 +436,21 @@ CandidateCubes candidateCubes(const std::vector<Candidate>& candidates, float bi
 // votes of keypoint k that land in a cube's bins (`chunk`: the thread's buffer to cast them
 // into); the storage paths differ only in finding a vote's bin.
 template <typename OnKeypoint>
-std::vector<Support> supportPerKeypoint(const VoteCaster& caster, size_t candidates, const OnKeypoint& onKeypoint) {
+std::vector<Support> supportPerKeypoint(const VoteCaster& caster, size_t candidates, LoopStop& stop,
+                                        const OnKeypoint& onKeypoint) {
   return perThreadRanges<Support>(caster.keypoints(), kKeypointsPerThread, [&](Support& s, size_t begin, size_t end) {
     s.score.assign(candidates, 0.0);
     s.keypoints.resize(candidates);
     VoteChunk chunk;
-    for (size_t k = begin; k < end; ++k) onKeypoint(s, chunk, k);
+    for (size_t k = begin; k < end && !stop(k - begin); ++k) onKeypoint(s, chunk, k);
   });
 }
 
 // supportPerKeypoint, casting each keypoint's votes again: onChunk(s, votes, k) per chunk of them.
 template <typename OnChunk>
-std::vector<Support> supportPerChunk(const VoteCaster& caster, size_t candidates, const OnChunk& onChunk) {
-  return supportPerKeypoint(caster, candidates, [&](Support& s, VoteChunk& chunk, size_t k) {
+std::vector<Support> supportPerChunk(const VoteCaster& caster, size_t candidates, LoopStop& stop,
+                                     const OnChunk& onChunk) {
+  return supportPerKeypoint(caster, candidates, stop, [&](Support& s, VoteChunk& chunk, size_t k) {
     caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) { onChunk(s, votes, k); });
   });
 }
@@ -470,8 +498,9 @@ class GridRanges {
 
 // With each vote's bin kept: only the votes in a cube's bins are placed again.
 std::vector<Support> supportFromKeptBins(const VoteCaster& caster, const GridRanges& nearRange,
-                                         const std::vector<uint32_t>& vote_bins, const CandidateCubes& cubes) {
-  return supportPerKeypoint(caster, cubes.candidates.size(), [&](Support& s, VoteChunk&, size_t k) {
+                                         const std::vector<uint32_t>& vote_bins, const CandidateCubes& cubes,
+                                         LoopStop& stop) {
+  return supportPerKeypoint(caster, cubes.candidates.size(), stop, [&](Support& s, VoteChunk&, size_t k) {
     const uint32_t* bin = vote_bins.data() + caster.firstVote(k);
     caster.forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
       for (uint32_t start = first; start < last; start += kChunk) {
@@ -491,8 +520,8 @@ std::vector<Support> supportFromKeptBins(const VoteCaster& caster, const GridRan
 
 // Gridded bins without each vote's: every vote cast again and looked up in the grid.
 std::vector<Support> supportFromGrid(const VoteCaster& caster, const BinGrid& grid, float inverse_bin_size,
-                                     const GridRanges& nearRange, const CandidateCubes& cubes) {
-  return supportPerChunk(caster, cubes.candidates.size(), [&](Support& s, const VoteChunk& votes, size_t k) {
+                                     const GridRanges& nearRange, const CandidateCubes& cubes, LoopStop& stop) {
+  return supportPerChunk(caster, cubes.candidates.size(), stop, [&](Support& s, const VoteChunk& votes, size_t k) {
     const ChunkCells in(votes, inverse_bin_size, grid);
     uint32_t hit[kChunk], range[kChunk];
     const uint32_t hits = gatherNear(
@@ -506,7 +535,8 @@ std::vector<Support> supportFromGrid(const VoteCaster& caster, const BinGrid& gr
 }
 
 // Hashed bins: every vote cast again, its bin's key looked up.
-std::vector<Support> supportFromKeys(const VoteCaster& caster, float inverse_bin_size, const CandidateCubes& cubes) {
+std::vector<Support> supportFromKeys(const VoteCaster& caster, float inverse_bin_size, const CandidateCubes& cubes,
+                                     LoopStop& stop) {
   BinMap<uint32_t> range_of;  // 1 + the range of a bin
   // Most votes land far from every candidate. A 32 KB bitmap of the bins near candidates (one
   // bit per Fibonacci hash of the key) stays in L1 and turns those votes away before the
@@ -520,7 +550,7 @@ std::vector<Support> supportFromKeys(const VoteCaster& caster, float inverse_bin
     const uint64_t bit = filterBit(key);
     near_filter[bit >> 6] |= uint64_t{1} << (bit & 63);
   }
-  return supportPerChunk(caster, cubes.candidates.size(), [&](Support& s, const VoteChunk& votes, size_t k) {
+  return supportPerChunk(caster, cubes.candidates.size(), stop, [&](Support& s, const VoteChunk& votes, size_t k) {
     const ChunkBins in(votes, inverse_bin_size);
     for (uint32_t j = 0; j < votes.size; ++j) {
       const BinKey key = in.key(j);
@@ -575,9 +605,10 @@ struct HoughSpace::Impl {
 
 HoughSpace::HoughSpace(const Model& model, int category_index, const Features& features,
                        const std::vector<Activation>& activations, const Strategy& strategy, size_t max_grid_bins,
-                       size_t max_kept_vote_bins)
+                       size_t max_kept_vote_bins, const ShouldStop& should_stop)
     : impl_(new Impl{VoteCaster(model, category_index, features, activations, strategy), 0, std::nullopt, {}}) {
   Impl& impl = *impl_;
+  LoopStop stop(should_stop);
   const VoteCaster& caster = impl.caster;
   const float inverse_bin_size = impl.inverse_bin_size = 1.0f / caster.category().bin_size;
   if (const std::optional<GridBox> box = gridBox(caster, inverse_bin_size, max_grid_bins)) {
@@ -587,7 +618,7 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
                                                          [&](std::optional<BinGrid>& grid, size_t begin, size_t end) {
       grid.emplace(box->first, box->bins);
       VoteChunk chunk;
-      for (size_t k = begin; k < end; ++k) {
+      for (size_t k = begin; k < end && !stop(k - begin); ++k) {
         uint32_t* kept = keep_bins ? impl.vote_bins.data() + caster.firstVote(k) : nullptr;
         caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
           const ChunkCells in(votes, inverse_bin_size, *grid);
@@ -601,6 +632,7 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
         });
       }
     });
+    stop.check("voting");
     impl.grid = std::move(parts[0]);
     for (size_t t = 1; t < parts.size(); ++t) {
       for (const int32_t b : parts[t]->allocated()) {
@@ -615,13 +647,14 @@ HoughSpace::HoughSpace(const Model& model, int category_index, const Features& f
   auto parts = perThreadRanges<BinMap<BinSum>>(caster.keypoints(), kKeypointsPerThread,
                                                [&](BinMap<BinSum>& bins, size_t begin, size_t end) {
     VoteChunk chunk;
-    for (size_t k = begin; k < end; ++k) {
+    for (size_t k = begin; k < end && !stop(k - begin); ++k) {
       caster.forEachChunk(k, chunk, [&](const VoteChunk& votes) {
         const ChunkBins in(votes, inverse_bin_size);
         for (uint32_t j = 0; j < votes.size; ++j) add(bins[in.key(j)], votes.weight, votes.x[j], votes.y[j], votes.z[j]);
       });
     }
   });
+  stop.check("voting");
   impl.hashed = std::move(parts[0]);
   for (size_t t = 1; t < parts.size(); ++t) {
     for (const auto& slot : parts[t].slots()) {
@@ -653,8 +686,9 @@ bool HoughSpace::gridded() const { return impl_->grid.has_value(); }
 
 bool HoughSpace::keptVoteBins() const { return !impl_->vote_bins.empty(); }
 
-std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
+std::vector<Hypothesis> HoughSpace::findPeaks(float threshold, const ShouldStop& should_stop) const {
   const Impl& impl = *impl_;
+  LoopStop stop(should_stop);
   const VoteCaster& caster = impl.caster;
   const CategoryModel& category = caster.category();
   const std::vector<Candidate> candidates =
@@ -667,12 +701,13 @@ std::vector<Hypothesis> HoughSpace::findPeaks(float threshold) const {
   const CandidateCubes cubes = candidateCubes(candidates, category.bin_size, impl.inverse_bin_size);
   std::vector<Support> support;
   if (!impl.grid) {
-    support = supportFromKeys(caster, impl.inverse_bin_size, cubes);
+    support = supportFromKeys(caster, impl.inverse_bin_size, cubes, stop);
   } else if (impl.vote_bins.empty()) {
-    support = supportFromGrid(caster, *impl.grid, impl.inverse_bin_size, GridRanges(*impl.grid, cubes), cubes);
+    support = supportFromGrid(caster, *impl.grid, impl.inverse_bin_size, GridRanges(*impl.grid, cubes), cubes, stop);
   } else {
-    support = supportFromKeptBins(caster, GridRanges(*impl.grid, cubes), impl.vote_bins, cubes);
+    support = supportFromKeptBins(caster, GridRanges(*impl.grid, cubes), impl.vote_bins, cubes, stop);
   }
+  stop.check("hypothesis search");
   return suppressNearbyPeaks(hypothesesAbove(threshold, category, caster.features(), candidates, support),
                              category.bin_size);
 }

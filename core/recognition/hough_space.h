@@ -34,10 +34,12 @@ class HoughSpace {
 
   // Throws Error(kInvalidInput) for an activation outside the features or the vote table.
   // `max_grid_bins` lowers the limit, 0 always hashes the bins; `max_kept_vote_bins` likewise
-  // (tests). The results do not depend on either.
+  // (tests). The results do not depend on either. `should_stop` is polled while votes are cast
+  // (from several threads at once); Error(kCancelled) when it says stop.
   HoughSpace(const Model& model, int category_index, const Features& features,
              const std::vector<Activation>& activations, const Strategy& strategy,
-             size_t max_grid_bins = kMaxGridBins, size_t max_kept_vote_bins = kMaxKeptVoteBins);
+             size_t max_grid_bins = kMaxGridBins, size_t max_kept_vote_bins = kMaxKeptVoteBins,
+             const ShouldStop& should_stop = {});
   ~HoughSpace();
   HoughSpace(const HoughSpace&) = delete;
   HoughSpace& operator=(const HoughSpace&) = delete;
@@ -47,7 +49,8 @@ class HoughSpace {
   // score exceeds `threshold`; within bin_size of a better one it is dropped. Best first.
   // The score and support are found by casting the votes again and keeping only those that land
   // in a bin a peak's cube meets. Each peak's box is fitted and checked (box_selection.h).
-  std::vector<Hypothesis> findPeaks(float threshold) const;
+  // `should_stop` as for the constructor.
+  std::vector<Hypothesis> findPeaks(float threshold, const ShouldStop& should_stop = {}) const;
 
   const VoteCaster& caster() const;
   size_t votes() const;  // cast into the space

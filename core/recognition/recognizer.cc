@@ -146,11 +146,12 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const std::vector<Activation>& activated = activations[global ? 0 : s];
     auto start = std::chrono::steady_clock::now();
-    const HoughSpace hough(model, plan.categories[s], features, activated, strategy);
+    const HoughSpace hough(model, plan.categories[s], features, activated, strategy, HoughSpace::kMaxGridBins,
+                           HoughSpace::kMaxKeptVoteBins, options.should_stop);
     vote_ms += elapsed_ms(start);
     throwIfStopped(options.should_stop, "voting");
     start = std::chrono::steady_clock::now();
-    auto peaks = hough.findPeaks(plan.thresholds[s]);
+    auto peaks = hough.findPeaks(plan.thresholds[s], options.should_stop);
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
     for (auto& peak : peaks) {
       peak.confidence = plan.confidence[s](peak);

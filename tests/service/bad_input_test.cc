@@ -4,6 +4,7 @@
 // must get its status code and a message naming what is wrong; afterwards the server still
 // answers, and the flood leaves its resident memory bounded.
 #include <arpa/inet.h>
+#include <sys/stat.h>
 #include <grpcpp/generic/generic_stub.h>
 #include <gtest/gtest.h>
 #include <zlib.h>
@@ -261,6 +262,22 @@ TEST_F(BadInputTest, UndecodableBytesOnEveryRpc) {
   expectStillServing();
 }
 
+// A request of 0 bytes is a valid message with every field at its default: each RPC answers it
+// as it would any request without those fields, never as bytes that do not decode.
+TEST_F(BadInputTest, ARequestOfZeroBytesIsAnEmptyMessage) {
+  const std::vector<RawCase> cases{
+      {"Recognize", kService + "Recognize", "", grpc::StatusCode::INVALID_ARGUMENT, "Recognize: no scene given"},
+      {"ListModels", kService + "ListModels", "", grpc::StatusCode::OK, ""},
+      {"GetModel", kService + "GetModel", "", grpc::StatusCode::OK, ""},  // the only model
+      {"LoadModel", kService + "LoadModel", "", grpc::StatusCode::INVALID_ARGUMENT, "LoadModel: name is empty"},
+      {"UnloadModel", kService + "UnloadModel", "", grpc::StatusCode::INVALID_ARGUMENT, "UnloadModel: name is empty"},
+  };
+  for (const auto& c : cases) {
+    EXPECT_TRUE(hasStatus(rawUnary(server_->channel(), c.method, c.bytes), c.code, c.message)) << c.name;
+  }
+  expectStillServing();
+}
+
 // Above --max-message-mb gRPC refuses the message before any handler sees it.
 TEST_F(BadInputTest, OversizedMessagesOnEveryRpc) {
   const std::string oversized(kMaxMessageMb * 1024 * 1024 + 100, '\0');
@@ -422,6 +439,16 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
          o->mutable_strategy()->set_cutoff(nan);
        }),
        invalid, "options.strategy.cutoff must be >= 0, got nan"},
+      {"k beyond the codebook", options([](auto* o) {
+         o->mutable_strategy()->set_activation(v1::ACTIVATION_STRATEGY_KNN);
+         o->mutable_strategy()->set_k(1000000000);
+       }),
+       invalid, "options.strategy.k = 1000000000 is more than the 40 codewords of the model's global codebook"},
+      {"cutoff beyond any distance", options([](auto* o) {
+         o->mutable_strategy()->set_activation(v1::ACTIVATION_STRATEGY_CUTOFF);
+         o->mutable_strategy()->set_cutoff(1e30f);
+       }),
+       invalid, "options.strategy.cutoff = 1e+30 is more than 2, the largest distance between a descriptor"},
       {"NaN min_score", options([=](auto* o) { o->set_min_score(nan); }), invalid, "options.min_score is not finite"},
       {"Inf min_score", options([=](auto* o) { o->set_min_score(inf); }), invalid, "options.min_score is not finite"},
       {"unknown codebook type",
@@ -434,7 +461,7 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
        options([](auto* o) { o->mutable_strategy()->set_weighting(static_cast<v1::VoteWeighting>(-2)); }), invalid,
        "options.strategy.weighting -2 is not supported"},
       {"empty category name", options([](auto* o) { o->add_categories(""); }), grpc::StatusCode::NOT_FOUND,
-       "unknown category '' (the model has: dining_chair, dining_table)"},
+       "category '' is not in the model (it has: dining_chair, dining_table)"},
       {"unknown model", options([](auto* o) { o->set_model("furniture-v2"); }), grpc::StatusCode::NOT_FOUND,
        "unknown model 'furniture-v2' (loaded: default)"},
   };
@@ -533,7 +560,7 @@ TEST_F(BadInputTest, AStreamThatCannotGoOnEndsWithTheReason) {
                   {frame(1).SerializeAsString(), garbage, frame(3).SerializeAsString()}, &responses);
     EXPECT_TRUE(hasStatus(status, grpc::StatusCode::INVALID_ARGUMENT,
                           "message 2 of the stream (16 bytes) is not a valid ism.v1.StreamFramesRequest"));
-    ASSERT_LE(responses.size(), 1u);
+    ASSERT_EQ(responses.size(), 1u);
     for (const auto& bytes : responses) {
       v1::FrameResult result;
       ASSERT_TRUE(result.ParseFromString(bytes));
@@ -555,19 +582,73 @@ TEST_F(BadInputTest, AStreamThatCannotGoOnEndsWithTheReason) {
   expectStillServing();
 }
 
+// EVERY_FRAME frames 1-6, then a message that ends the stream: the frames read before it (some
+// still queued when it arrives) are each answered before the stream ends, and the final status
+// names what was read but not processed.
+TEST_F(BadInputTest, EveryFrameReadBeforeABadMessageIsAnswered) {
+  std::vector<std::string> frames;
+  for (uint64_t id = 1; id <= 6; ++id) {
+    v1::StreamFramesRequest request;
+    if (id == 1) request.mutable_settings()->set_policy(v1::BACKPRESSURE_POLICY_EVERY_FRAME);
+    request.set_frame_id(id);
+    *request.mutable_scene() = *png_;
+    frames.push_back(request.SerializeAsString());
+  }
+  v1::StreamFramesRequest unknown_policy;
+  unknown_policy.set_frame_id(7);
+  unknown_policy.mutable_settings()->set_policy(static_cast<v1::BackpressurePolicy>(9));
+  *unknown_policy.mutable_scene() = *png_;
+  const std::string garbage("\x00\x01\x02 not protobuf", 16);
+  const std::vector<std::pair<std::string, std::string>> endings{
+      {garbage, "message 7 of the stream (16 bytes) is not a valid ism.v1.StreamFramesRequest"},
+      {unknown_policy.SerializeAsString(), "settings.policy 9 (frame 7) is not supported"}};
+  for (const auto& [ending, reason] : endings) {
+    std::vector<std::string> messages = frames;
+    messages.push_back(ending);
+    std::vector<std::string> responses;
+    const grpc::Status status = rawStream(server_->channel(), kService + "StreamFrames", messages, &responses);
+    EXPECT_TRUE(hasStatus(status, grpc::StatusCode::INVALID_ARGUMENT, reason));
+    EXPECT_TRUE(hasStatus(status, grpc::StatusCode::INVALID_ARGUMENT, "every frame read before it was answered"));
+    if (ending != garbage) {
+      EXPECT_TRUE(hasStatus(status, grpc::StatusCode::INVALID_ARGUMENT, "not processed: frame 7"));
+    }
+    std::vector<uint64_t> answered;
+    for (const auto& bytes : responses) {
+      v1::FrameResult result;
+      ASSERT_TRUE(result.ParseFromString(bytes));
+      EXPECT_TRUE(result.has_result()) << result.error().message();
+      answered.push_back(result.frame_id());
+    }
+    EXPECT_EQ(answered, (std::vector<uint64_t>{1, 2, 3, 4, 5, 6})) << reason;
+  }
+  expectStillServing();
+}
+
+// Bad LoadModel requests, with a model folder of the test's own: files that are not models, and
+// paths that are not regular files of that folder, none of which may block or answer with what a
+// file holds.
 TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
   const fs::path dir = fs::path(::testing::TempDir()) / ("ism_bad_input_" + std::to_string(getpid()));
-  fs::create_directories(dir / "a_directory.ismm");
+  fs::create_directories(dir);
   const std::string model = readFileBytes(tinyModelDirectory() + "/default.ismm");
+  writeFileBytes((dir / "default.ismm").string(), model);
+  ServerProcess server({"--models", dir.string(), "--max-model-mb", "1"});
+  fs::create_directories(dir / "a_directory.ismm");
   writeFileBytes((dir / "truncated.ismm").string(), model.substr(0, model.size() / 2));
   writeFileBytes((dir / "garbage.ismm").string(), std::string("\x00\x01\x02 this is no model", 21));
   writeFileBytes((dir / "empty.ismm").string(), "");
+  writeFileBytes((dir / "secret.ismm").string(), "SECRET-API-KEY-0123456789abcdef!");
+  writeFileBytes((dir / "large.ismm").string(), std::string((1 << 20) + 1, 'x'));
   std::string damaged = model;
   damaged[damaged.size() / 2] ^= 0x5a;
   writeFileBytes((dir / "damaged.ismm").string(), damaged);
+  ASSERT_EQ(mkfifo((dir / "fifo.ismm").c_str(), 0600), 0);
+  fs::create_symlink("/dev/zero", dir / "zero.ismm");
   auto path = [&](const char* name) { return (dir / name).string(); };
-  auto s = stub();
+  auto s = FurnitureRecognizer::NewStub(server.channel());
   const auto failed = grpc::StatusCode::FAILED_PRECONDITION;
+  const auto invalid = grpc::StatusCode::INVALID_ARGUMENT;
+  const auto not_found = grpc::StatusCode::NOT_FOUND;
 
   struct LoadCase {
     std::string name, path;
@@ -575,25 +656,51 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
     std::string message;
   };
   const std::string unparsable = ": not a model file or truncated (the ModelFile envelope does not parse)";
+  const std::string unreadable = ": not a readable regular file";
+  const std::string outside = "is not in the model folder " + dir.string() + ": only files there are loaded";
   const std::vector<LoadCase> loads{
-      {"", path("garbage.ismm"), grpc::StatusCode::INVALID_ARGUMENT, "LoadModel: name is empty"},
-      {"other", "", grpc::StatusCode::INVALID_ARGUMENT, "LoadModel: path is empty"},
+      {"", path("garbage.ismm"), invalid, "LoadModel: name is empty"},
+      {"other", "", invalid, "LoadModel: path is empty"},
       {"other", path("truncated.ismm"), failed, path("truncated.ismm") + unparsable},
-      {"other", path("garbage.ismm"), failed, path("garbage.ismm") + unparsable},
-      {"other", path("empty.ismm"), failed, path("empty.ismm") + ": wrong magic '', expected 'ISM-MODEL'"},
+      {"other", "garbage.ismm", failed, path("garbage.ismm") + unparsable},  // relative to the folder
+      {"other", path("empty.ismm"), failed, path("empty.ismm") + ": wrong magic: not a model file"},
       {"other", path("damaged.ismm"), failed,
        path("damaged.ismm") + ": CRC-32 mismatch (the file is truncated or damaged)"},
-      {"other", path("a_directory.ismm"), failed, path("a_directory.ismm") + ": is a directory, not a file"},
+      {"other", path("large.ismm"), grpc::StatusCode::RESOURCE_EXHAUSTED,
+       path("large.ismm") + ": larger than the 1048576 bytes a model file may have here"},
+      // Not regular files: refused before a byte is read (a FIFO would block, /dev/zero never end).
+      {"other", path("a_directory.ismm"), not_found, path("a_directory.ismm") + unreadable},
+      {"other", path("fifo.ismm"), not_found, path("fifo.ismm") + unreadable},
+      {"other", path("zero.ismm"), not_found, path("zero.ismm") + unreadable},
+      {"other", path("absent.ismm"), not_found, path("absent.ismm") + unreadable},
+      // Outside the folder: the same answer whether the file exists or not.
+      {"other", "/dev/zero", invalid, "LoadModel: path '/dev/zero' " + outside},
+      {"other", "/etc/passwd", invalid, "LoadModel: path '/etc/passwd' " + outside},
+      {"other", "/etc/no-such-file", invalid, "LoadModel: path '/etc/no-such-file' " + outside},
+      {"other", "../default.ismm", invalid, "LoadModel: path '../default.ismm' " + outside},
+      {"other", path("../x/../default.ismm"), invalid, outside},
       // The loaded default must survive a failed replacement.
       {"default", path("truncated.ismm"), failed, path("truncated.ismm") + unparsable},
   };
   for (const auto& c : loads) {
     grpc::ClientContext context;
+    context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(30));
     v1::LoadModelRequest request;
     request.set_name(c.name);
     request.set_path(c.path);
     v1::ModelInfo info;
     EXPECT_TRUE(hasStatus(s->LoadModel(&context, request, &info), c.code, c.message)) << c.name << " " << c.path;
+  }
+  {
+    // What a file holds is never echoed.
+    grpc::ClientContext context;
+    v1::LoadModelRequest request;
+    request.set_name("other");
+    request.set_path(path("secret.ismm"));
+    v1::ModelInfo info;
+    const grpc::Status status = s->LoadModel(&context, request, &info);
+    EXPECT_EQ(status.error_code(), failed);
+    EXPECT_EQ(status.error_message().find("SECRET"), std::string::npos) << status.error_message();
   }
   {
     grpc::ClientContext context;
@@ -615,9 +722,13 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
   ASSERT_TRUE(s->ListModels(&context, {}, &models).ok());
   ASSERT_EQ(models.models_size(), 1);
   EXPECT_EQ(models.models(0).name(), "default");
-  EXPECT_EQ(models.models(0).path(), fs::absolute(tinyModelDirectory() + "/default.ismm").string());
+  EXPECT_EQ(models.models(0).path(), path("default.ismm"));
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = *raw_;
+  grpc::ClientContext recognize_context;
+  v1::RecognizeResponse response;
+  EXPECT_TRUE(s->Recognize(&recognize_context, request, &response).ok());
   fs::remove_all(dir);
-  expectStillServing();
 }
 
 // Thousands of tiny requests, good and bad, from many threads at once: each gets its own
@@ -637,7 +748,7 @@ TEST_F(BadInputTest, AFloodOfTinyRequestsLeavesMemoryBounded) {
          v1::RecognizeResponse response;
          return stub->Recognize(&context, v1::RecognizeRequest(), &response);
        },
-       grpc::StatusCode::INVALID_ARGUMENT, "scene has neither a cloud nor a depth image"},
+       grpc::StatusCode::INVALID_ARGUMENT, "Recognize: no scene given"},
       {[](auto* stub, const auto&) {
          grpc::ClientContext context;
          v1::RecognizeRequest request;

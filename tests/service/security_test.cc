@@ -169,6 +169,25 @@ TEST_F(SecurityTest, HealthIsOpenAndRecognizeNeedsAToken) {
   EXPECT_TRUE(status.ok()) << status.error_message();
 }
 
+// Two 'authorization' entries: good then bad, or bad then good. Which one counts would be a
+// guess (a proxy in between may take the other), so neither order gets in.
+TEST_F(SecurityTest, TwoAuthorizationEntriesAreRefusedInEitherOrder) {
+  ServerProcess server(secureFlags(), tls("ca"));
+  const std::vector<std::pair<std::string, std::string>> orders{{kUserToken, "not-one-of-the-server-tokens"},
+                                                                {"not-one-of-the-server-tokens", kUserToken}};
+  for (const auto& [first, second] : orders) {
+    grpc::ClientContext context;
+    prepare(&context, first);
+    context.AddMetadata("authorization", "Bearer " + second);
+    v1::ListModelsResponse models;
+    const grpc::Status status = FurnitureRecognizer::NewStub(server.channel())->ListModels(&context, {}, &models);
+    EXPECT_EQ(status.error_code(), grpc::StatusCode::UNAUTHENTICATED) << first << " then " << second;
+    EXPECT_NE(status.error_message().find("more than one 'authorization' metadata entry"), std::string::npos)
+        << status.error_message();
+  }
+  EXPECT_TRUE(recognize(server, kUserToken).ok());
+}
+
 TEST_F(SecurityTest, ModelManagementNeedsTheAdminToken) {
   ServerProcess server(secureFlags(), tls("ca"));
   auto stub = FurnitureRecognizer::NewStub(server.channel());

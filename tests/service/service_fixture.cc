@@ -21,6 +21,7 @@
 #include "core/model/model_file.h"
 #include "core/training/trainer.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "proto/wire/messages.h"
 #include "tests/common/synthetic_furniture.h"
 
 extern char** environ;
@@ -60,15 +61,8 @@ CameraIntrinsics scaledKinect(int width, int height) {
 }
 
 void setPose(const DepthImage& image, v1::Scene* out) {
-  const Eigen::Vector3f t = image.camera_to_world.translation();
-  const Eigen::Quaternionf q(image.camera_to_world.rotation());
-  out->mutable_sensor_origin()->set_x(t.x());
-  out->mutable_sensor_origin()->set_y(t.y());
-  out->mutable_sensor_origin()->set_z(t.z());
-  out->mutable_sensor_orientation()->set_w(q.w());
-  out->mutable_sensor_orientation()->set_x(q.x());
-  out->mutable_sensor_orientation()->set_y(q.y());
-  out->mutable_sensor_orientation()->set_z(q.z());
+  wire::toProto(Eigen::Vector3f(image.camera_to_world.translation()), out->mutable_sensor_origin());
+  wire::toProto(Eigen::Quaternionf(image.camera_to_world.rotation()), out->mutable_sensor_orientation());
 }
 
 DepthPng toPng(const DepthImage& image, float depth_scale) {
@@ -84,12 +78,10 @@ v1::Scene depthMessage(const DepthImage& image, float depth_scale) {
   auto* depth = out.mutable_depth();
   depth->set_width(image.intrinsics.width);
   depth->set_height(image.intrinsics.height);
-  auto* k = depth->mutable_intrinsics();
-  k->set_fx(image.intrinsics.fx);
-  k->set_fy(image.intrinsics.fy);
-  k->set_cx(image.intrinsics.cx);
-  k->set_cy(image.intrinsics.cy);
-  k->set_depth_scale(depth_scale);
+  DepthIntrinsics k;
+  static_cast<PinholeIntrinsics&>(k) = image.intrinsics;
+  k.depth_scale = depth_scale;
+  *depth->mutable_intrinsics() = wire::intrinsicsToProto(k);
   setPose(image, &out);
   return out;
 }
@@ -251,9 +243,7 @@ v1::Scene cloudMessage(const Scene& scene) {
     const float v[3] = {p.x, p.y, p.z};
     std::memcpy(xyz->data() + i * 12, v, 12);
   }
-  out.mutable_sensor_origin()->set_x(scene.sensor_origin.x());
-  out.mutable_sensor_origin()->set_y(scene.sensor_origin.y());
-  out.mutable_sensor_origin()->set_z(scene.sensor_origin.z());
+  wire::toProto(scene.sensor_origin, out.mutable_sensor_origin());
   return out;
 }
 
