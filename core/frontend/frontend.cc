@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "core/common/error.h"
+#include "core/frontend/range_image.h"
 #include "core/frontend/shot.h"
 #include "core/frontend/upright_geometry.h"
 
@@ -38,12 +39,12 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
   // Floor and walls: their points stay in the surface descriptors are computed over, but are
   // never keypoints.
   std::vector<PlaneLabel> planes;
+  // The optical frame's up, -y, wherever the sensor's pose turns it.
+  const Eigen::Vector3f sensor_up = scene.sensor_orientation * Eigen::Vector3f(0, -1, 0);
   if (params.gravity.enabled) {
     ScopedStage stage(timings, "gravity");
     std::vector<Eigen::Vector3f> positions(points->size());
     for (size_t i = 0; i < points->size(); ++i) positions[i] = (*points)[i].getVector3fMap();
-    // The optical frame's up, -y, wherever the sensor's pose turns it.
-    const Eigen::Vector3f sensor_up = scene.sensor_orientation * Eigen::Vector3f(0, -1, 0);
     GravityResult found = estimateGravity(positions, scene.sensor_origin, sensor_up, scene.up, params.gravity);
     result.gravity = found.gravity;
     planes = std::move(found.labels);
@@ -58,7 +59,8 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     return kept;
   };
   std::vector<int> keypoints;
-  if (resolveKeypointMethod(params.keypoints.method, scene) == KeypointMethod::kBoundary) {
+  const KeypointMethod method = resolveKeypointMethod(params.keypoints, scene);
+  if (method == KeypointMethod::kBoundary) {
     std::vector<int> point_of_surface;
     {
       ScopedStage stage(timings, "normals");
@@ -86,7 +88,15 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     {
       ScopedStage stage(timings, "keypoints");
       normals.emplace(*points, params.normals, scene.sensor_origin);
-      keypoints = offPlanes(detectContourKeypoints(scene, *normals, params.keypoints, params.downsample.leaf_size), {});
+      if (method == KeypointMethod::kRangeImage) {
+        const Eigen::Vector3f up = result.gravity ? result.gravity->up : sensor_up;
+        const Scene view = rangeImageView(*points, scene.sensor_origin, up, params.keypoints.range_image);
+        if (view.image_width > 0) {
+          keypoints = offPlanes(detectContourKeypoints(view, *normals, params.keypoints, params.downsample.leaf_size), {});
+        }
+      } else {
+        keypoints = offPlanes(detectContourKeypoints(scene, *normals, params.keypoints, params.downsample.leaf_size), {});
+      }
     }
     throwIfStopped(should_stop, "keypoints");
     {

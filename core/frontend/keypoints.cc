@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/frontend/neighbour_grid.h"
 #include "core/frontend/occluding_contours.h"
+#include "core/frontend/range_image.h"
 #include "core/frontend/param_checks.h"
 
 namespace ism {
@@ -74,9 +75,9 @@ std::vector<int> detectBoundaryKeypoints(const Surface& surface, const KeypointP
   return keypoints;
 }
 
-KeypointMethod resolveKeypointMethod(KeypointMethod method, const Scene& scene) {
-  if (method != KeypointMethod::kAuto) return method;
-  return scene.pixel_index.empty() ? KeypointMethod::kBoundary : KeypointMethod::kOccludingContour;
+KeypointMethod resolveKeypointMethod(const KeypointParams& params, const Scene& scene) {
+  if (params.method != KeypointMethod::kAuto) return params.method;
+  return scene.pixel_index.empty() ? params.unorganized : KeypointMethod::kOccludingContour;
 }
 
 std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud, const std::vector<int>& point_indices,
@@ -114,8 +115,18 @@ template std::vector<int> thinKeypoints(const XyzCloud&, const std::vector<int>&
 std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, const KeypointParams& params,
                                  float leaf_size) {
   std::vector<int> keypoints;
-  if (resolveKeypointMethod(params.method, scene) == KeypointMethod::kBoundary) {
+  const KeypointMethod method = resolveKeypointMethod(params, scene);
+  if (method == KeypointMethod::kBoundary) {
     keypoints = detectBoundaryKeypoints(surface, params);
+  } else if (method == KeypointMethod::kRangeImage) {
+    XyzCloud points;
+    for (const auto& p : surface) points.push_back({p.x, p.y, p.z});
+    const Scene view = rangeImageView(points, scene.sensor_origin,
+                                      scene.up.value_or(scene.sensor_orientation * Eigen::Vector3f(0, -1, 0)),
+                                      params.range_image);
+    if (view.image_width > 0) {
+      keypoints = nearestSurfacePoints(surface, *view.cloud, detectOccludingContourPixels(view, params.contour), leaf_size);
+    }
   } else {
     keypoints = nearestSurfacePoints(surface, *scene.cloud, detectOccludingContourPixels(scene, params.contour),
                                      leaf_size);

@@ -14,8 +14,9 @@ namespace ism {
 // Indices into `surface` of boundary points (largest angular gap > threshold).
 std::vector<int> detectBoundaryKeypoints(const Surface& surface, const KeypointParams& params);
 
-// kAuto resolved for `scene`: occluding contours when it is organized, else the boundary test.
-KeypointMethod resolveKeypointMethod(KeypointMethod method, const Scene& scene);
+// params.method with kAuto resolved for `scene`: occluding contours when it is organized, else
+// params.unorganized (the range image's contours or the boundary test).
+KeypointMethod resolveKeypointMethod(const KeypointParams& params, const Scene& scene);
 
 // Indices into `surface` (ascending, unique) of the surface point nearest to each of
 // cloud[point_indices], when it is within `max_distance`. With max_distance = the leaf size this

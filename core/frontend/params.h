@@ -28,6 +28,7 @@ enum class KeypointMethod {
   kAuto,              // organized scene -> occluding contours, unorganized -> boundary test
   kBoundary,          // the seed's detector: largest angular gap of the neighbours > angle_threshold
   kOccludingContour,  // depth discontinuities of the pixel grid; needs an organized scene
+  kRangeImage,        // occluding contours of the range image seen from the sensor (range_image.h)
 };
 
 // Occluding contours: a pixel is an edge when, within `window` pixels along one of the 8
@@ -51,8 +52,20 @@ struct ContourParams {
   int max_gap = 40;
 };
 
+// The range image an unorganized cloud is seen as (range_image.h). 2.5 spacings: at the median
+// nearest-neighbour distance d of points scattered at random, a pixel of side 2.5 d holds about
+// (2.5 d)^2 / (0.47^2 / density) ~ 1.4 points on average, so few pixels of a surface are holes.
+struct RangeImageParams {
+  float pixel_spacings = 2.5f;
+  long max_pixels = 4'000'000;  // beyond it the pixels grow
+};
+
 struct KeypointParams {
   KeypointMethod method = KeypointMethod::kAuto;
+  // What kAuto takes for unorganized clouds: kRangeImage, or kBoundary (the seed's). Training
+  // scans are depth frames, so kRangeImage gives scenes of every kind the training's detector.
+  KeypointMethod unorganized = KeypointMethod::kRangeImage;
+  RangeImageParams range_image;
   float radius = 0.03f;                        // neighbourhood of the boundary test (m)
   float angle_threshold = static_cast<float>(M_PI / 2);  // largest angular gap that is still "inside"
   ContourParams contour;

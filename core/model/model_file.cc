@@ -256,8 +256,32 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
     case v1::FrontEndParams::KEYPOINT_METHOD_OCCLUDING_CONTOUR:
       m.front_end.keypoints.method = KeypointMethod::kOccludingContour;
       break;
+    case v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE:
+      m.front_end.keypoints.method = KeypointMethod::kRangeImage;
+      break;
     default:
       r.fail("front-end parameters have unknown keypoint_method " + std::to_string(fe.keypoint_method()));
+  }
+  auto& keypoints = m.front_end.keypoints;
+  switch (fe.unorganized_keypoint_method()) {
+    case v1::FrontEndParams::KEYPOINT_METHOD_UNSPECIFIED:  // written before range images
+    case v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY:
+      keypoints.unorganized = KeypointMethod::kBoundary;
+      break;
+    case v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE:
+      keypoints.unorganized = KeypointMethod::kRangeImage;
+      keypoints.range_image.pixel_spacings = fe.range_image_pixel_spacings();
+      keypoints.range_image.max_pixels = static_cast<long>(fe.range_image_max_pixels());
+      if (!(keypoints.range_image.pixel_spacings > 0 && std::isfinite(keypoints.range_image.pixel_spacings) &&
+            keypoints.range_image.max_pixels >= 9)) {
+        r.fail("front-end range image parameters are invalid: pixel_spacings " +
+               std::to_string(keypoints.range_image.pixel_spacings) + ", max_pixels " +
+               std::to_string(keypoints.range_image.max_pixels));
+      }
+      break;
+    default:
+      r.fail("front-end parameters have an unorganized_keypoint_method that is not BOUNDARY or RANGE_IMAGE: " +
+             std::to_string(fe.unorganized_keypoint_method()));
   }
   auto& contour = m.front_end.keypoints.contour;
   contour.window = fe.contour_window();
@@ -372,7 +396,15 @@ std::string serializeModel(const Model& model) {
     case KeypointMethod::kOccludingContour:
       fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_OCCLUDING_CONTOUR);
       break;
+    case KeypointMethod::kRangeImage:
+      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE);
+      break;
   }
+  fe->set_unorganized_keypoint_method(model.front_end.keypoints.unorganized == KeypointMethod::kRangeImage
+                                          ? v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE
+                                          : v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY);
+  fe->set_range_image_pixel_spacings(model.front_end.keypoints.range_image.pixel_spacings);
+  fe->set_range_image_max_pixels(model.front_end.keypoints.range_image.max_pixels);
   fe->set_contour_window(model.front_end.keypoints.contour.window);
   fe->set_contour_min_jump(model.front_end.keypoints.contour.min_jump);
   fe->set_contour_relative_jump(model.front_end.keypoints.contour.relative_jump);

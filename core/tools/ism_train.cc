@@ -43,7 +43,11 @@ int main(int argc, char** argv) {
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.
   bool no_gravity = false, no_training_floor = false, no_calibration = false;
-  std::string vote_frame;
+  std::string vote_frame, cloud_keypoints;
+  app.add_option("--cloud-keypoints", cloud_keypoints,
+                 "keypoints of unorganized clouds: range-image (contours seen from the sensor, the default) or boundary "
+                 "(the seed's)")
+      ->check(CLI::IsMember({"range-image", "boundary"}));
   app.add_flag("--no-gravity", no_gravity, "no up, floor or walls: keypoints anywhere, votes in the LRF, no heights");
   app.add_option("--vote-frame", vote_frame, "lrf (the seed's) or upright (the default)")
       ->check(CLI::IsMember({"lrf", "upright"}));
@@ -71,6 +75,10 @@ int main(int argc, char** argv) {
   if (no_gravity) {
     params.front_end.gravity.enabled = false;
     params.voting = {ism::VoteFrame::kLrf, 0.0f};
+  }
+  if (!cloud_keypoints.empty()) {
+    params.front_end.keypoints.unorganized =
+        cloud_keypoints == "boundary" ? ism::KeypointMethod::kBoundary : ism::KeypointMethod::kRangeImage;
   }
   if (no_training_floor) params.render_floor = false;
   if (no_calibration) params.calibration.enabled = false;

@@ -261,6 +261,7 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
 TrainingParams seedTrainingParams() {
   TrainingParams params;
   params.front_end.gravity.enabled = false;
+  params.front_end.keypoints.unorganized = KeypointMethod::kBoundary;
   params.voting = VotingParams{VoteFrame::kLrf, 0.0f};
   params.render_floor = false;
   params.calibration.enabled = false;

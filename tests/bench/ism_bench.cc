@@ -109,7 +109,7 @@ void prepareInputs() {
   setThreads(processors());
   in.downsampled = downsample(*in.scene.cloud, fe.downsample);
   in.smoothed = fe.smoothing.enabled ? smooth(*in.downsampled, fe.smoothing) : in.downsampled;
-  in.organized = resolveKeypointMethod(fe.keypoints.method, in.scene) == KeypointMethod::kOccludingContour;
+  in.organized = resolveKeypointMethod(fe.keypoints, in.scene) == KeypointMethod::kOccludingContour;
   if (in.organized) {  // as extractFeatures: keypoints first, then the normals around them
     NormalEstimator normals(*in.smoothed, fe.normals, in.scene.sensor_origin);
     in.keypoints = detectContourKeypoints(in.scene, normals, fe.keypoints, fe.downsample.leaf_size);

@@ -118,9 +118,17 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
   names.clear();
   for (const auto& stage : unsmoothed_timings.stages) names.push_back(stage.first);
   EXPECT_EQ(names, (std::vector<std::string>{"downsample", "gravity", "keypoints", "normals", "describe"}));
-  // The boundary test reads every point's normal.
+  // An unorganized cloud's range image has its contours before any normal, as a frame does; the
+  // boundary test reads every point's normal.
   Scene unorganized = scene;
   unorganized.pixel_index.clear();
+  StageTimings range_timings;
+  const FrontEndResult ranged = extractFeatures(unorganized, unsmoothed, /*apply_smoothing=*/true, &range_timings);
+  names.clear();
+  for (const auto& stage : range_timings.stages) names.push_back(stage.first);
+  EXPECT_EQ(names, (std::vector<std::string>{"downsample", "gravity", "keypoints", "normals", "describe"}));
+  EXPECT_GT(ranged.features.size(), 0u);
+  unsmoothed.keypoints.unorganized = KeypointMethod::kBoundary;
   StageTimings boundary_timings;
   extractFeatures(unorganized, unsmoothed, /*apply_smoothing=*/true, &boundary_timings);
   names.clear();

@@ -34,16 +34,22 @@ TEST(Keypoints, BorderOfASquarePatchIsBoundaryInteriorIsNot) {
   }
 }
 
-TEST(Keypoints, UnorganizedInputFallsBackToTheBoundaryTest) {
+TEST(Keypoints, UnorganizedInputTakesTheChosenDetector) {
   const Scene organized = boxInFrontOfWall();
   Scene unorganized = organized;
   unorganized.pixel_index.clear();
   unorganized.image_width = unorganized.image_height = 0;
-  EXPECT_EQ(resolveKeypointMethod(KeypointMethod::kAuto, organized), KeypointMethod::kOccludingContour);
-  EXPECT_EQ(resolveKeypointMethod(KeypointMethod::kAuto, unorganized), KeypointMethod::kBoundary);
-  EXPECT_EQ(resolveKeypointMethod(KeypointMethod::kBoundary, organized), KeypointMethod::kBoundary);
+  KeypointParams automatic;
+  EXPECT_EQ(resolveKeypointMethod(automatic, organized), KeypointMethod::kOccludingContour);
+  EXPECT_EQ(resolveKeypointMethod(automatic, unorganized), KeypointMethod::kRangeImage);
+  automatic.unorganized = KeypointMethod::kBoundary;
+  EXPECT_EQ(resolveKeypointMethod(automatic, unorganized), KeypointMethod::kBoundary);
+  KeypointParams boundary_only;
+  boundary_only.method = KeypointMethod::kBoundary;
+  EXPECT_EQ(resolveKeypointMethod(boundary_only, organized), KeypointMethod::kBoundary);
 
-  const FrontEndParams params;
+  FrontEndParams params;
+  params.keypoints.unorganized = KeypointMethod::kBoundary;
   const float leaf = params.downsample.leaf_size;
   const auto surface = estimateNormals(*downsample(*organized.cloud, params.downsample), params.normals,
                                        organized.sensor_origin);
@@ -59,6 +65,40 @@ TEST(Keypoints, UnorganizedInputFallsBackToTheBoundaryTest) {
   forced.method = KeypointMethod::kOccludingContour;
   expectError([&] { detectKeypoints(unorganized, *surface, forced, leaf); }, ErrorCode::kInvalidInput,
               "need an organized scene");
+}
+
+// The same scene without its pixel grid: the range image seen from the sensor finds the box's
+// silhouette again, and neither the wall's face nor the floor-less image border.
+TEST(Keypoints, TheRangeImageOfAnUnorganizedCloudFindsTheOccludingContours) {
+  const Scene organized = boxInFrontOfWall();
+  Scene unorganized = organized;
+  unorganized.pixel_index.clear();
+  unorganized.image_width = unorganized.image_height = 0;
+  const FrontEndParams params;
+  const float leaf = params.downsample.leaf_size;
+  const auto surface = estimateNormals(*downsample(*organized.cloud, params.downsample), params.normals,
+                                       organized.sensor_origin);
+  const std::vector<int> contour = detectKeypoints(organized, *surface, params.keypoints, leaf);
+  const std::vector<int> ranged = detectKeypoints(unorganized, *surface, params.keypoints, leaf);
+  ASSERT_FALSE(contour.empty());
+  ASSERT_FALSE(ranged.empty());
+  // Within one pixel of the range image (2.5 point spacings: 2.9 cm at the box's 1.5 m in this
+  // 160 x 120 frame) and one voxel of the organized contour.
+  constexpr float kNear = 0.04f;
+  const auto nearContour = [&](int k) {
+    for (int c : contour) {
+      if (((*surface)[static_cast<size_t>(k)].getVector3fMap() - (*surface)[static_cast<size_t>(c)].getVector3fMap()).norm() <= kNear) {
+        return true;
+      }
+    }
+    return false;
+  };
+  const auto near = std::count_if(ranged.begin(), ranged.end(), nearContour);
+  EXPECT_GE(near, static_cast<long>(0.9 * static_cast<double>(ranged.size())))
+      << near << " of " << ranged.size() << " range-image keypoints lie near the organized contours";
+  // Its pixels are 2.5 point spacings wide, so a contour is about 2.5 times fewer pixels long.
+  EXPECT_GE(ranged.size(), contour.size() / 5) << "the range image finds too little of the silhouette";
+  EXPECT_LT(ranged.size(), surface->size() / 10) << "the range image fires on faces, not only on contours";
 }
 
 TEST(Keypoints, EdgePointsSelectTheirNearestSurfacePointAndMinSpacingKeepsOnePerCell) {

@@ -212,10 +212,23 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   EXPECT_EQ(loaded.contour.relative_jump, 0.09f);
   EXPECT_EQ(loaded.contour.max_gap, 25);
   EXPECT_EQ(loaded.min_spacing, 0.02f);
-  for (KeypointMethod method : {KeypointMethod::kAuto, KeypointMethod::kBoundary}) {
+  EXPECT_EQ(loaded.unorganized, KeypointMethod::kRangeImage) << "new models see clouds as range images";
+  for (KeypointMethod method : {KeypointMethod::kAuto, KeypointMethod::kBoundary, KeypointMethod::kRangeImage}) {
     k.method = method;
     EXPECT_EQ(parseModel(serializeModel(model), "new.ismm").front_end.keypoints.method, method);
   }
+  k.range_image.pixel_spacings = 3.5f;
+  k.range_image.max_pixels = 1000;
+  const KeypointParams ranged = parseModel(serializeModel(model), "new.ismm").front_end.keypoints;
+  EXPECT_EQ(ranged.range_image.pixel_spacings, 3.5f);
+  EXPECT_EQ(ranged.range_image.max_pixels, 1000);
+  k.unorganized = KeypointMethod::kBoundary;
+  EXPECT_EQ(parseModel(serializeModel(model), "new.ismm").front_end.keypoints.unorganized, KeypointMethod::kBoundary);
+  k.unorganized = KeypointMethod::kRangeImage;
+  k.range_image.pixel_spacings = 0;
+  expectError([&] { parseModel(serializeModel(model), "broken.ismm"); }, ErrorCode::kCorruptModel,
+              "range image parameters are invalid");
+  k.range_image.pixel_spacings = 2.5f;
 
   // A file written before the keypoint fields existed: its payload has none of them.
   v1::ModelFile file;
@@ -225,6 +238,7 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   auto* fe = data.mutable_front_end();
   fe->clear_keypoint_method(), fe->clear_contour_window(), fe->clear_contour_min_jump();
   fe->clear_contour_relative_jump(), fe->clear_contour_max_gap(), fe->clear_keypoint_min_spacing();
+  fe->clear_unorganized_keypoint_method(), fe->clear_range_image_pixel_spacings(), fe->clear_range_image_max_pixels();
   const auto resealed = [&file](const v1::ModelData& payload) {
     file.set_payload(payload.SerializeAsString());
     file.set_payload_crc32(static_cast<uint32_t>(
@@ -233,6 +247,7 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   };
   const KeypointParams old = parseModel(resealed(data), "old.ismm").front_end.keypoints;
   EXPECT_EQ(old.method, KeypointMethod::kBoundary);
+  EXPECT_EQ(old.unorganized, KeypointMethod::kBoundary) << "older models took the boundary test for clouds";
   EXPECT_EQ(old.min_spacing, 0.0f);
 
   fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);  // contour fields still unset
