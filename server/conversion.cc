@@ -170,6 +170,7 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
   } else {
     orientation.normalize();
   }
+  const std::optional<Eigen::Vector3f> up = wire::upFromProto(scene);  // checked before the costly decoding
 
   Scene out;
   switch (scene.data_case()) {
@@ -188,6 +189,7 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
   }
   out.sensor_origin = origin;
   out.sensor_orientation = orientation;
+  out.up = up;
   out.source = "request";
   return out;
 }
@@ -199,6 +201,7 @@ RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Mode
     if (!std::isfinite(in.min_score())) throw invalid("options.min_score is not finite");
     out.min_score = in.min_score();
   }
+  wire::answerOptionsFromProto(in, &out);
   out.max_hypotheses = static_cast<int>(in.max_hypotheses());
   out.box_selection = in.has_box_selection() ? in.box_selection() : true;
   out.return_keypoints = in.return_keypoints();

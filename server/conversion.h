@@ -44,7 +44,8 @@ struct SceneBuffers {
 Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers = nullptr);
 
 // Unset strategy fields take the activation parameters the model's thresholds were computed
-// with. Categories are core's to check (recognize() refuses unknown ones before any work).
+// with; the preset and its options are wire::answerOptionsFromProto's. Categories are core's to
+// check (recognize() refuses unknown ones before any work).
 RecognitionOptions optionsFromProto(const v1::RecognitionOptions& options, const Model& model);
 
 // The result with the name and version of the model that answered.

@@ -35,9 +35,10 @@ void ServiceContext::recognize(const std::string& request_id, const v1::Scene& s
 
   std::string stages;
   for (const auto& [name, ms] : result.timings.stages) stages += fmt::format(" {}={:.1f}ms", name, ms);
-  spdlog::info("[{}] model={}@{} points={} keypoints={} hypotheses={} total={:.1f}ms{}", request_id, model->name,
-               model->info.version(), result.input_points, result.keypoints, result.hypotheses.size(),
-               result.timings.total(), stages);
+  spdlog::info("[{}] model={}@{} preset={} up={} points={} keypoints={} hypotheses={} total={:.1f}ms{}", request_id,
+               model->name, model->info.version(), toString(core_options.preset),
+               result.gravity ? toString(result.gravity->source) : "none", result.input_points, result.keypoints,
+               result.hypotheses.size(), result.timings.total(), stages);
 }
 
 ShouldStop ServiceContext::stopper(grpc::CallbackServerContext* context, const std::atomic<bool>* also) const {

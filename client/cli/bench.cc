@@ -274,6 +274,7 @@ BenchReport runBench(const Connection& connection, const BenchParams& params, co
   std::vector<v1::RecognizeRequest> requests(params.files.size());
   for (size_t i = 0; i < params.files.size(); ++i) {
     *requests[i].mutable_scene() = sceneFromFile(params.files[i], flags.intrinsics, false).message;
+    flags.applyTo(requests[i].mutable_scene());
     *requests[i].mutable_options() = flags.build();
   }
   auto stub = v1::FurnitureRecognizer::NewStub(connection.channel());

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <limits>
 #include <map>
+#include <sstream>
 
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
@@ -107,7 +108,38 @@ void RecognitionFlags::add(CLI::App* app) {
       ->default_str(toString(weighting));
   app->add_flag_function("--keypoints", [this](int64_t) { options.set_return_keypoints(true); },
                          "return each hypothesis' supporting keypoints");
-  app->add_flag("--no-box-selection", no_box_selection, "also return hypotheses whose box fails the test");
+  app->add_flag("--no-box-selection", no_box_selection, "seed preset: also return hypotheses whose box fails the test");
+  app->add_option("--preset", preset,
+                  "default (calibrated confidence, upright boxes, one answer per object) or seed (the seed's "
+                  "pipeline: score over its threshold, learned box limits)")
+      ->type_name("NAME")
+      // Spelled out: core's names for presets live in its recognition library, which the client
+      // does not link.
+      ->transform(CLI::CheckedTransformer(
+                      std::map<std::string, RecognitionPreset>{{"default", RecognitionPreset::kDefault},
+                                                               {"seed", RecognitionPreset::kSeed}})
+                      .description(""))
+      ->default_str("default");
+  app->add_option("--min-confidence", min_confidence, "default preset: drop hypotheses less confident (server "
+                                                      "default 0.5)")
+      ->check(CLI::Range(0.0f, 0.99f));
+  app->add_flag("--keep-overlaps", keep_overlaps,
+                "default preset: every confident peak, not one answer per object");
+  app->add_option_function<std::string>(
+         "--up",
+         [this](const std::string& text) {
+           // The server would refuse such a vector too; refused here, it is a usage error.
+           std::stringstream in(text);
+           Eigen::Vector3f v;
+           char comma1 = 0, comma2 = 0;
+           if (!(in >> v.x() >> comma1 >> v.y() >> comma2 >> v.z()) || comma1 != ',' || comma2 != ',' ||
+               !in.eof() || !v.allFinite() || !(v.norm() > 1e-6f)) {
+             throw CLI::ValidationError("--up", "'" + text + "' is not three numbers X,Y,Z of a non-zero vector");
+           }
+           up = v;
+         },
+         "the scenes' up direction X,Y,Z in their coordinates, when known (default: the server finds the floor)")
+      ->type_name("X,Y,Z");
   app->add_option("--fx", intrinsics.fx, "depth PNG focal length x (px)")->capture_default_str();
   app->add_option("--fy", intrinsics.fy, "depth PNG focal length y (px)")->capture_default_str();
   app->add_option("--cx", intrinsics.cx, "depth PNG principal point x (px)")->capture_default_str();
@@ -125,7 +157,14 @@ v1::RecognitionOptions RecognitionFlags::build() const {
   s->set_codebook(wire::toProto(codebook));
   s->set_activation(wire::toProto(activation));
   s->set_weighting(wire::toProto(weighting));
+  out.set_preset(wire::toProto(preset));
+  if (!std::isnan(min_confidence)) out.set_min_confidence(min_confidence);
+  if (keep_overlaps) out.set_one_answer_per_object(false);
   return out;
+}
+
+void RecognitionFlags::applyTo(v1::Scene* scene) const {
+  if (up) wire::toProto(*up, scene->mutable_up());
 }
 
 // PCD/PLY through core's loaders (NaNs dropped, sensor pose kept); PNG sent as it is and

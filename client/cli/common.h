@@ -5,12 +5,14 @@
 
 #include <cmath>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "core/common/types.h"
 #include "core/io/cloud_io.h"
 #include "core/model/model.h"
+#include "core/recognition/recognizer.h"
 #include "core/report/report.h"
 #include "ism/v1/service.pb.h"
 
@@ -50,10 +52,16 @@ struct RecognitionFlags {
   ActivationStrategy activation = ActivationStrategy::kKnn;
   VoteWeighting weighting = VoteWeighting::kLocalization;
   bool no_box_selection = false;
+  RecognitionPreset preset = RecognitionPreset::kDefault;
+  float min_confidence = NAN;  // NaN: the server's default
+  bool keep_overlaps = false;
+  std::optional<Eigen::Vector3f> up;  // of every scene sent
   DepthIntrinsics intrinsics;  // of depth PNGs
 
   void add(CLI::App* app);
   v1::RecognitionOptions build() const;
+  // What the flags say about a scene rather than the options: its up.
+  void applyTo(v1::Scene* scene) const;
 };
 
 // A cloud as the wire carries it: an organized cloud as its whole image grid, NaN where no point

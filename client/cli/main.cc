@@ -60,6 +60,7 @@ int runRecognize(const Connection& connection, const std::vector<std::string>& f
     try {
       scene = sceneFromFile(file, flags.intrinsics, !picture.empty());
       *request.mutable_scene() = std::move(scene.message);
+      flags.applyTo(request.mutable_scene());
     } catch (const std::exception& e) {
       std::cerr << "error: " << e.what() << "\n";
       if (exit_code == 0) exit_code = kLocalFailure;

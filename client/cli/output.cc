@@ -30,6 +30,20 @@ std::string enumName(const google::protobuf::EnumDescriptor* descriptor, int val
 
 }  // namespace
 
+// Which up the boxes and height priors used, so that a caller can tell a found floor from a guess.
+std::string gravityLine(const Gravity& g) {
+  std::ostringstream s;
+  s << std::fixed << std::setprecision(2) << "up: (" << g.up.x() << ", " << g.up.y() << ", " << g.up.z() << ") "
+    << toString(g.source);
+  if (g.floor_level) {
+    s << ", floor at " << *g.floor_level << " m (" << g.floor_points << " points)";
+  } else {
+    s << ", no floor found";
+  }
+  if (g.walls > 0) s << ", " << g.walls << " walls (" << g.wall_points << " points)";
+  return s.str();
+}
+
 std::string toJson(const google::protobuf::Message& message) {
   std::string json;
   google::protobuf::util::JsonPrintOptions options;
@@ -49,6 +63,7 @@ void printResult(std::ostream& out, const std::string& title, const v1::Recognit
   const bool any_failed = std::any_of(core.hypotheses.begin(), core.hypotheses.end(),
                                       [](const Hypothesis& h) { return !h.passed_selection; });
   out << hypothesesTable(core, any_failed);
+  if (core.gravity) out << gravityLine(*core.gravity) << "\n";
   out << "stages:";
   for (const auto& t : result.timings()) out << " " << t.stage() << " " << std::setprecision(1) << t.ms() << " ms";
   out << "\n";

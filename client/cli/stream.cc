@@ -146,6 +146,7 @@ bool StreamRun::send(Call& call, v1::StreamFramesRequest& request, uint64_t id, 
   request.set_frame_id(id);
   request.set_timestamp_us(frame.timestamp_us);
   *request.mutable_scene() = frame.scene;
+  flags_.applyTo(request.mutable_scene());
   const bool ok = call.Write(request);
   request.clear_settings();  // the first message of each call carries them
   return ok;
@@ -174,7 +175,8 @@ void StreamRun::print(const v1::FrameResult& result) const {
   } else {
     std::cout << result.result().hypotheses_size() << " hypotheses";
     for (const auto& h : result.result().hypotheses()) {
-      std::cout << " [" << h.category() << " " << std::fixed << std::setprecision(2) << h.score() << " at ("
+      // The confidence rather than the score: it means the same for every category.
+      std::cout << " [" << h.category() << " p=" << std::fixed << std::setprecision(2) << h.confidence() << " at ("
                 << h.center().x() << ", " << h.center().y() << ", " << h.center().z() << ")]";
     }
     std::cout << std::fixed << std::setprecision(1) << ", " << result.result().total_ms() << " ms";

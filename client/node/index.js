@@ -48,7 +48,17 @@ function packRows(rows, ArrayType, what) {
   return { bytes: Buffer.from(flat.buffer, flat.byteOffset, flat.byteLength), count: flat.length / 3 };
 }
 
-function cloudScene(points, { rgb, width = 0, height = 0 } = {}) {
+// up: [x, y, z] (or { x, y, z }), the scene's up in its coordinates when known; else the server
+// looks for the floor. The server refuses one that is zero or not finite.
+function withUp(scene, up) {
+  if (up == null) return scene;
+  const v = Array.isArray(up) || ArrayBuffer.isView(up) ? Array.from(up) : [up.x, up.y, up.z];
+  if (v.length !== 3 || !v.every((c) => typeof c === 'number')) throw new TypeError('up must be three numbers [x, y, z]');
+  const [x, y, z] = v;
+  return { ...scene, up: { x, y, z } };
+}
+
+function cloudScene(points, { rgb, width = 0, height = 0, up } = {}) {
   const xyz = packRows(points, Float32Array, 'points');
   const cloud = { xyz: xyz.bytes, width, height };
   if (rgb != null) {
@@ -56,11 +66,12 @@ function cloudScene(points, { rgb, width = 0, height = 0 } = {}) {
     if (colours.count !== xyz.count) throw new RangeError(`rgb has ${colours.count} rows but points has ${xyz.count}`);
     cloud.rgb = colours.bytes;
   }
-  return { cloud };
+  return withUp({ cloud }, up);
 }
 
 // depth: PNG file bytes (Buffer), or { data: Uint16Array (row-major), width, height } raw units.
-function depthScene(depth, intrinsics = KINECT) {
+// up as for cloudScene, in the camera's optical frame (x right, y down, z forward).
+function depthScene(depth, intrinsics = KINECT, { up } = {}) {
   const image = { intrinsics: { ...KINECT, ...intrinsics } };
   if (Buffer.isBuffer(depth)) {
     if (!depth.subarray(0, 8).equals(PNG_SIGNATURE)) throw new TypeError('depth Buffer is not a PNG');
@@ -76,7 +87,7 @@ function depthScene(depth, intrinsics = KINECT) {
   } else {
     throw new TypeError('depth must be PNG bytes (Buffer) or { data: Uint16Array, width, height }');
   }
-  return { depth: image };
+  return withUp({ depth: image }, up);
 }
 
 const STRATEGY_ENUMS = {
@@ -84,6 +95,7 @@ const STRATEGY_ENUMS = {
   activation: ['ACTIVATION_STRATEGY', ['knn', 'cutoff']],
   weighting: ['VOTE_WEIGHTING', ['categorization', 'localization', 'activation']],
 };
+const PRESETS = { default: 'RECOGNITION_PRESET_DEFAULT', seed: 'RECOGNITION_PRESET_SEED' };
 const POLICIES = { every_frame: 'BACKPRESSURE_POLICY_EVERY_FRAME', latest_frame_wins: 'BACKPRESSURE_POLICY_LATEST_FRAME_WINS' };
 
 function enumValue(kind, name) {
@@ -94,8 +106,13 @@ function enumValue(kind, name) {
 }
 
 // ism.v1.RecognitionOptions from { model, categories, minScore, maxHypotheses, codebook,
-// activation, k, cutoff, weighting, returnKeypoints, boxSelection }; unset = the model's defaults.
+// activation, k, cutoff, weighting, returnKeypoints, boxSelection, preset ('default': calibrated
+// confidence, one answer per object; 'seed': the seed's pipeline), minConfidence (default preset,
+// in [0, 0.99]), oneAnswerPerObject }; unset = the server's and the model's defaults.
 function recognitionOptions(o = {}) {
+  if (o.preset != null && !PRESETS[o.preset]) {
+    throw new RangeError(`unknown preset '${o.preset}': one of ${Object.keys(PRESETS).join(', ')}`);
+  }
   const options = {
     model: o.model || '', categories: o.categories || [], maxHypotheses: o.maxHypotheses || 0,
     returnKeypoints: !!o.returnKeypoints,
@@ -106,6 +123,9 @@ function recognitionOptions(o = {}) {
   };
   if (o.minScore != null) options.minScore = o.minScore;
   if (o.boxSelection != null) options.boxSelection = o.boxSelection;
+  options.preset = o.preset == null ? 'RECOGNITION_PRESET_UNSPECIFIED' : PRESETS[o.preset];
+  if (o.minConfidence != null) options.minConfidence = o.minConfidence;
+  if (o.oneAnswerPerObject != null) options.oneAnswerPerObject = o.oneAnswerPerObject;
   return options;
 }
 
@@ -192,18 +212,19 @@ class Client {
     return (await this.unary(this.stub, 'recognize', request, timeoutMs)).result;
   }
 
-  // points: Nx3 metres; options: rgb, width, height (organized clouds), requestId, timeoutMs and
-  // those of recognitionOptions.
-  async recognizeCloud(points, { rgb, width, height, ...options } = {}) {
-    return this.recognize(cloudScene(points, { rgb, width, height }), options);
+  // points: Nx3 metres; options: rgb, width, height (organized clouds), up, requestId, timeoutMs
+  // and those of recognitionOptions. The result's hypotheses come most confident first, with
+  // confidence and alternatives; result.gravity is the up their boxes stand along.
+  async recognizeCloud(points, { rgb, width, height, up, ...options } = {}) {
+    return this.recognize(cloudScene(points, { rgb, width, height, up }), options);
   }
 
-  async recognizeDepth(depth, intrinsics = KINECT, options = {}) {
-    return this.recognize(depthScene(depth, intrinsics), options);
+  async recognizeDepth(depth, intrinsics = KINECT, { up, ...options } = {}) {
+    return this.recognize(depthScene(depth, intrinsics, { up }), options);
   }
 
   // frames: an (async) iterable of { points, rgb } or { depth, intrinsics }, with optional
-  // frameId (default: 0, 1, 2...) and timestampUs. Yields FrameResults in frame order.
+  // frameId (default: 0, 1, 2...), timestampUs and up. Yields FrameResults in frame order.
   // policy: 'every_frame' (flow control slows the sender) or 'latest_frame_wins'.
   async* streamFrames(frames, { policy = 'every_frame', ...options } = {}) {
     if (!POLICIES[policy]) throw new RangeError(`unknown policy '${policy}': one of ${Object.keys(POLICIES).join(', ')}`);
@@ -213,7 +234,7 @@ class Client {
     const send = (async () => {
       let index = 0;
       for await (const frame of frames) {
-        const scene = frame.depth != null ? depthScene(frame.depth, frame.intrinsics) : cloudScene(frame.points, frame);
+        const scene = frame.depth != null ? depthScene(frame.depth, frame.intrinsics, frame) : cloudScene(frame.points, frame);
         const request = { frameId: frame.frameId ?? index, timestampUs: frame.timestampUs || 0, scene };
         if (index === 0) request.settings = settings;
         index += 1;

@@ -1,10 +1,21 @@
 #include "proto/wire/messages.h"
 
 #include <cmath>
+#include <cstdio>
 
 #include "core/common/error.h"
 
 namespace ism::wire {
+namespace {
+
+// Values in messages as a user typed them ("0.5", "nan"), not std::to_string's "0.500000".
+std::string shortest(float v) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%g", v);
+  return text;
+}
+
+}  // namespace
 
 Eigen::Vector3f fromProto(const v1::Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
@@ -53,6 +64,96 @@ v1::CameraIntrinsics intrinsicsToProto(const DepthIntrinsics& in) {
   return out;
 }
 
+std::optional<Eigen::Vector3f> upFromProto(const v1::Scene& scene) {
+  if (!scene.has_up()) return std::nullopt;
+  const Eigen::Vector3f up = fromProto(scene.up());
+  // The bound core's gravity stage refuses below; checked here so the message names the field.
+  if (!(up.allFinite() && up.norm() > 1e-6f)) {
+    throw Error(ErrorCode::kInvalidInput, "scene.up = (" + shortest(up.x()) + ", " + shortest(up.y()) + ", " +
+                                              shortest(up.z()) +
+                                              ") is not a direction: it must be finite and not zero (leave it unset "
+                                              "to have the floor found)");
+  }
+  return up;
+}
+
+RecognitionPreset presetFromProto(int value) {
+  switch (value) {
+    case v1::RECOGNITION_PRESET_UNSPECIFIED:
+    case v1::RECOGNITION_PRESET_DEFAULT: return RecognitionPreset::kDefault;
+    case v1::RECOGNITION_PRESET_SEED: return RecognitionPreset::kSeed;
+  }
+  throw Error(ErrorCode::kInvalidInput,
+              "options.preset " + std::to_string(value) + " is not supported (RECOGNITION_PRESET_DEFAULT or _SEED)");
+}
+
+v1::RecognitionPreset toProto(RecognitionPreset preset) {
+  switch (preset) {
+    case RecognitionPreset::kDefault: return v1::RECOGNITION_PRESET_DEFAULT;
+    case RecognitionPreset::kSeed: return v1::RECOGNITION_PRESET_SEED;
+  }
+  return v1::RECOGNITION_PRESET_UNSPECIFIED;
+}
+
+v1::UpSource toProto(UpSource source) {
+  switch (source) {
+    case UpSource::kGiven: return v1::UP_SOURCE_GIVEN;
+    case UpSource::kFloor: return v1::UP_SOURCE_FLOOR;
+    case UpSource::kAssumed: return v1::UP_SOURCE_ASSUMED;
+  }
+  return v1::UP_SOURCE_UNSPECIFIED;
+}
+
+std::optional<UpSource> upSourceFromProto(int value) {
+  switch (value) {
+    case v1::UP_SOURCE_GIVEN: return UpSource::kGiven;
+    case v1::UP_SOURCE_FLOOR: return UpSource::kFloor;
+    case v1::UP_SOURCE_ASSUMED: return UpSource::kAssumed;
+  }
+  return std::nullopt;
+}
+
+void answerOptionsFromProto(const v1::RecognitionOptions& in, RecognitionOptions* out) {
+  out->preset = presetFromProto(in.preset());
+  if (in.has_min_confidence()) {
+    // Core's bounds: a confidence of 1 is never reached, so a larger minimum would answer nothing.
+    if (!(in.min_confidence() >= 0 && in.min_confidence() <= 0.99f)) {
+      throw Error(ErrorCode::kInvalidInput,
+                  "options.min_confidence = " + shortest(in.min_confidence()) + " is not in [0, 0.99]");
+    }
+    out->min_confidence = in.min_confidence();
+  } else {
+    out->min_confidence = RecognitionOptions{}.min_confidence;
+  }
+  out->one_answer_per_object = in.has_one_answer_per_object() ? in.one_answer_per_object() : true;
+}
+
+void answerOptionsToProto(const RecognitionOptions& in, v1::RecognitionOptions* out) {
+  out->set_preset(toProto(in.preset));
+  out->set_min_confidence(in.min_confidence);
+  out->set_one_answer_per_object(in.one_answer_per_object);
+}
+
+void toProto(const Gravity& gravity, v1::Gravity* out) {
+  toProto(gravity.up, out->mutable_up());
+  out->set_source(toProto(gravity.source));
+  if (gravity.floor_level) out->set_floor_level(*gravity.floor_level);
+  out->set_floor_points(gravity.floor_points);
+  out->set_wall_points(gravity.wall_points);
+  out->set_walls(static_cast<uint32_t>(gravity.walls));
+}
+
+Gravity gravityFromProto(const v1::Gravity& in) {
+  Gravity out;
+  out.up = fromProto(in.up());
+  out.source = upSourceFromProto(in.source()).value_or(UpSource::kAssumed);
+  if (in.has_floor_level()) out.floor_level = in.floor_level();
+  out.floor_points = in.floor_points();
+  out.wall_points = in.wall_points();
+  out.walls = static_cast<int>(in.walls());
+  return out;
+}
+
 void resultToProto(const RecognitionResult& result, v1::RecognitionResult* out) {
   for (const auto& h : result.hypotheses) {
     auto* hp = out->add_hypotheses();
@@ -67,7 +168,15 @@ void resultToProto(const RecognitionResult& result, v1::RecognitionResult* out) 
     toProto(h.support_centroid, hp->mutable_support_centroid());
     hp->set_passed_selection(h.passed_selection);
     for (const auto& p : h.support_keypoints) toProto(p, hp->add_support_keypoints());
+    hp->set_confidence(h.confidence);
+    for (const auto& a : h.alternatives) {
+      auto* ap = hp->add_alternatives();
+      ap->set_category(a.category);
+      ap->set_confidence(a.confidence);
+    }
+    hp->set_upright_box(h.upright_box);
   }
+  if (result.gravity) toProto(*result.gravity, out->mutable_gravity());
   for (const auto& [stage, ms] : result.timings.stages) {
     auto* t = out->add_timings();
     t->set_stage(stage);
@@ -94,7 +203,11 @@ RecognitionResult resultFromProto(const v1::RecognitionResult& in) {
     hypothesis.support_centroid = fromProto(h.support_centroid());
     hypothesis.passed_selection = h.passed_selection();
     for (const auto& p : h.support_keypoints()) hypothesis.support_keypoints.push_back(fromProto(p));
+    hypothesis.confidence = h.confidence();
+    for (const auto& a : h.alternatives()) hypothesis.alternatives.push_back({a.category(), a.confidence()});
+    hypothesis.upright_box = h.upright_box();
   }
+  if (in.has_gravity()) out.gravity = gravityFromProto(in.gravity());
   for (const auto& t : in.timings()) out.timings.add(t.stage(), t.ms());
   out.input_points = in.input_points();
   out.surface_points = in.surface_points();

@@ -58,6 +58,20 @@ class PcdReaderTest(unittest.TestCase):
                 read_pcd(other)
 
 
+class CommandLineOutputTest(unittest.TestCase):
+    """What the command line prints of an answer; no server needed."""
+
+    def test_gravity_line_says_where_up_came_from_as_ism_client_does(self):
+        from ism_client.__main__ import gravity_line
+        pb = ism_client.service_pb2
+        g = pb.Gravity(up=pb.Vec3(z=1), source=pb.UP_SOURCE_FLOOR, floor_level=-1.25, floor_points=512, walls=2,
+                       wall_points=90)
+        self.assertEqual(gravity_line(g), "up: (0.00, 0.00, 1.00) floor, floor at -1.25 m (512 points), 2 walls (90 points)")
+        g.ClearField("floor_level")
+        g.source, g.walls = pb.UP_SOURCE_GIVEN, 0
+        self.assertEqual(gravity_line(g), "up: (0.00, 0.00, 1.00) given, no floor found")
+
+
 class ClientAgainstServerTest(unittest.TestCase):
     @classmethod
     def setUpClass(cls):
@@ -131,6 +145,49 @@ class ClientAgainstServerTest(unittest.TestCase):
             self.client.recognize_depth(np.zeros((4, 4), np.float32), SMALL)
         with self.assertRaisesRegex(ValueError, "unknown activation"):
             self.client.recognize_cloud(self.points, activation="nearest")
+        with self.assertRaisesRegex(ValueError, "unknown preset"):
+            self.client.recognize_cloud(self.points, preset="fancy")
+        with self.assertRaisesRegex(ValueError, r"up must be three numbers"):
+            self.client.recognize_cloud(self.points, up=(0, 1))
+
+    def test_default_preset_confidences_and_the_given_up(self):
+        result = self.client.recognize_cloud(self.points, up=(0, 0, 2), min_confidence=0.01)
+        self.assert_valid_result(result, input_points=len(self.points))
+        for i, h in enumerate(result.hypotheses):
+            self.assertTrue(0.01 <= h.confidence <= 1, h.confidence)
+            if i:
+                self.assertLessEqual(h.confidence, result.hypotheses[i - 1].confidence, "not most confident first")
+            for a in h.alternatives:
+                self.assertNotEqual(a.category, h.category)
+                self.assertLessEqual(a.confidence, h.confidence)
+        # A model trained before the gravity stage (no front-end gravity parameters) reports none.
+        if self.model.front_end.HasField("gravity"):
+            self.assertEqual(result.gravity.source, ism_client.service_pb2.UP_SOURCE_GIVEN)
+            self.assertEqual((result.gravity.up.x, result.gravity.up.y, result.gravity.up.z), (0, 0, 1))
+        else:
+            self.assertFalse(result.HasField("gravity"))
+
+    def test_seed_preset_ranks_by_score_over_threshold_and_merges_nothing(self):
+        result = self.client.recognize_cloud(self.points, preset="seed", min_score=0, box_selection=False,
+                                             max_hypotheses=6)
+        self.assertTrue(result.hypotheses)
+        relative = [h.score / h.threshold if h.threshold > 0 else h.score for h in result.hypotheses]
+        self.assertEqual(relative, sorted(relative, reverse=True))
+        self.assertEqual([len(h.alternatives) for h in result.hypotheses], [0] * len(result.hypotheses))
+
+    def test_bad_up_and_min_confidence_are_invalid_arguments_naming_the_field(self):
+        for options, field in ((dict(up=(0, 0, 0)), "scene.up = (0, 0, 0)"), (dict(up=(float("inf"), 0, 1)), "scene.up"),
+                               (dict(min_confidence=1.5), "options.min_confidence = 1.5"),
+                               (dict(min_confidence=-1), "options.min_confidence = -1")):
+            with self.subTest(**options):
+                with self.assertRaises(ism_client.IsmError) as caught:
+                    self.client.recognize_cloud(self.points, **options)
+                self.assertEqual(caught.exception.code.name, "INVALID_ARGUMENT")
+                self.assertIn(field, caught.exception.message)
+        frames = [ism_client.Frame(points=self.points, up=(0, 0, 0)), ism_client.Frame(points=self.points, up=(0, 0, 1))]
+        results = list(self.client.stream_frames(frames))
+        self.assertEqual([r.WhichOneof("outcome") for r in results], ["error", "result"])
+        self.assertIn("scene.up", results[0].error.message)
 
     def test_stream_answers_every_frame_in_order_and_isolates_a_bad_one(self):
         cloud = self.points[::2]
@@ -165,6 +222,18 @@ class ClientAgainstServerTest(unittest.TestCase):
             cloud = self.run_cli("recognize", pcd)
             self.assertEqual(cloud.returncode, 0, cloud.stderr)
             self.assertIn(f"model {self.model.name}@{self.model.version}: {len(self.points)} points", cloud.stdout)
+            chosen = self.run_cli("recognize", pcd, "--preset", "seed", "--min-score", "0", "--up", "0,0,1")
+            self.assertEqual(chosen.returncode, 0, chosen.stderr)
+            self.assertRegex(chosen.stdout, r"\n  \w+ +confidence [01]\.\d{3}  score")
+            if self.model.front_end.HasField("gravity"):
+                self.assertIn("up: (0.00, 0.00, 1.00) given", chosen.stdout)
+            for bad in (("--up", "0,0"), ("--preset", "fancy"), ("--min-confidence", "x")):
+                refused = self.run_cli("recognize", pcd, *bad)
+                self.assertEqual(refused.returncode, 2, refused.stderr)
+                self.assertIn(bad[0], refused.stderr)
+            far = self.run_cli("recognize", pcd, "--min-confidence", "1")
+            self.assertEqual(far.returncode, 1, far.stderr)
+            self.assertIn("options.min_confidence = 1 ", far.stderr)
             png = os.path.join(tmp, "depth.png")
             with open(png, "wb") as f:
                 f.write(scenes.png16(scenes.depth_of_box()))

@@ -22,6 +22,8 @@ class ClientTest : public ::testing::Test {
     fs::create_directories(dir_ / "tum" / "depth");
     const SyntheticScene scene = smallScene();
     savePcd(scene.scene, (dir_ / "scene.pcd").string());
+    // Large enough for the tiny model's calibration to find something with some confidence.
+    savePcd(smallScene(0, 320, 240).scene, (dir_ / "scene320.pcd").string());
     for (int i = 0; i < 6; ++i) {
       const v1::Scene frame = pngDepthMessage(smallScene(i).depth);
       writeFileBytes((dir_ / "tum" / "depth" / (std::to_string(1305031102 + i) + ".5.png")).string(),
@@ -54,12 +56,15 @@ TEST_F(ClientTest, HealthPrintsServing) {
 TEST_F(ClientTest, RecognizePrintsATable) {
   int code = -1;
   const std::string pcd = (dir_ / "scene.pcd").string();
-  // A zero threshold makes every Hough maximum a hypothesis, so the table has rows.
-  const std::string out = client("recognize --min-score 0 --max-hypotheses 3 --no-box-selection " + pcd, &code);
+  // In the seed's preset a zero threshold makes every Hough maximum a hypothesis, so the table has rows.
+  const std::string out =
+      client("recognize --preset seed --min-score 0 --max-hypotheses 3 --no-box-selection " + pcd, &code);
   EXPECT_EQ(code, 0) << out;
   EXPECT_TRUE(std::regex_search(out, std::regex(pcd + ": 3 hypotheses \\(model default@[0-9a-f]{8}"))) << out;
   EXPECT_NE(out.find("category"), std::string::npos) << out;
-  EXPECT_TRUE(std::regex_search(out, std::regex("\n(dining_table|dining_chair) +[0-9.]+ +0\\.000 "))) << out;
+  // category, confidence, score, threshold (the zero asked for)
+  EXPECT_TRUE(std::regex_search(out, std::regex("\n(dining_table|dining_chair) +[01]\\.[0-9]{3} +[0-9.]+ +0\\.000 ")))
+      << out;
   EXPECT_NE(out.find("stages: decode"), std::string::npos) << out;
 }
 
@@ -74,6 +79,55 @@ TEST_F(ClientTest, RecognizeJsonAndPicture) {
   EXPECT_NE(out.find("\"input_points\":"), std::string::npos) << out;
   ASSERT_TRUE(fs::exists(picture));
   EXPECT_GT(fs::file_size(picture), 100u);
+}
+
+// The default preset's answers with their confidences, and the up the server used: the one given.
+TEST_F(ClientTest, RecognizeWithUpAndMinConfidence) {
+  int code = -1;
+  const std::string pcd = (dir_ / "scene320.pcd").string();
+  std::string out = client("recognize --up 0,0,1 --min-confidence 0.01 " + pcd, &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex(pcd + ": [1-9][0-9]* hypotheses"))) << out;
+  EXPECT_TRUE(std::regex_search(out, std::regex("\n(dining_table|dining_chair) +0\\.[0-9]{3} "))) << out;
+  EXPECT_NE(out.find("\nup: (0.00, 0.00, 1.00) given, floor at "), std::string::npos) << out;
+
+  // The same in JSON, and a higher minimum keeps fewer.
+  out = client("--json recognize --up 0,0,1 --min-confidence 0.01 " + pcd, &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("\"source\":\"UP_SOURCE_GIVEN\""), std::string::npos) << out;
+  EXPECT_NE(out.find("\"upright_box\":true"), std::string::npos) << out;
+  const auto count = [](const std::string& text) {
+    size_t n = 0;
+    for (size_t at = text.find("\"confidence\":"); at != std::string::npos; at = text.find("\"confidence\":", at + 1)) ++n;
+    return n;
+  };
+  const std::string fewer = client("--json recognize --up 0,0,1 --min-confidence 0.3 " + pcd, &code);
+  EXPECT_EQ(code, 0) << fewer;
+  EXPECT_LT(count(fewer), count(out)) << fewer;
+
+  // Streams send the up with every frame.
+  out = client("stream --policy every --up 0,0,1 --fx 131.25 --fy 131.25 --cx 79.5 --cy 59.5 --folder " +
+                   (dir_ / "tum").string(),
+               &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_NE(out.find("6 frames sent, 6 results (0 failed)"), std::string::npos) << out;
+}
+
+// What the server would refuse is a usage error here, naming the flag.
+TEST_F(ClientTest, BadPresetFlagsAreUsageErrors) {
+  const std::string pcd = (dir_ / "scene.pcd").string();
+  for (const std::string& flags : {"--up 0,0,0", "--up 1,2", "--up 0,0,nan", "--up a,b,c"}) {
+    int code = -1;
+    const std::string out = client("recognize " + flags + " " + pcd, &code);
+    EXPECT_EQ(code, 2) << flags << ": " << out;
+    EXPECT_NE(out.find("--up"), std::string::npos) << flags << ": " << out;
+  }
+  for (const std::string& flags : {"--min-confidence 1", "--min-confidence -0.5", "--preset fancy"}) {
+    int code = -1;
+    const std::string out = client("recognize " + flags + " " + pcd, &code);
+    EXPECT_EQ(code, 2) << flags << ": " << out;
+    EXPECT_NE(out.find(flags.substr(0, flags.find(' '))), std::string::npos) << flags << ": " << out;
+  }
 }
 
 TEST_F(ClientTest, ExitCodesFollowTheStatus) {

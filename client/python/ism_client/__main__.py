@@ -1,5 +1,5 @@
 """Command line: python3 -m ism_client [--server HOST:PORT] [--tls-ca CA.crt [--tls-cert C.crt --tls-key C.key]]
-    recognize FILE.pcd|DEPTH.png | models [NAME] | health
+    recognize FILE.pcd|DEPTH.png [--preset default|seed] [--min-confidence P] [--up X,Y,Z] | models [NAME] | health
 
 The token for a server started with --token-file comes from ISM_TOKEN (or --token, which shows
 in ps). Exit status: 0 on success, 1 when the server answered an error (or health is not
@@ -10,7 +10,7 @@ import sys
 
 from google.protobuf import json_format
 
-from . import KINECT, Intrinsics, IsmError, connect, read_pcd
+from . import KINECT, Intrinsics, IsmError, connect, read_pcd, service_pb2
 
 
 def _print_result(result, as_json: bool):
@@ -19,16 +19,42 @@ def _print_result(result, as_json: bool):
         return
     print(f"model {result.model_name}@{result.model_version}: {result.input_points} points, "
           f"{result.keypoints} keypoints, {len(result.hypotheses)} hypotheses, {result.total_ms:.1f} ms")
+    if result.HasField("gravity"):
+        print(f"  {gravity_line(result.gravity)}")
     for h in result.hypotheses:
         c = h.center
-        print(f"  {h.category:<14} score {h.score:8.3f} (threshold {h.threshold:.3f})  "
+        print(f"  {h.category:<14} confidence {h.confidence:.3f}  score {h.score:8.3f} (threshold {h.threshold:.3f})  "
               f"centre ({c.x:.3f}, {c.y:.3f}, {c.z:.3f}) m  support {h.support}"
               f"{'' if h.passed_selection else '  [failed box selection]'}")
+        for a in h.alternatives:
+            print(f"    or {a.category:<11} confidence {a.confidence:.3f}")
+
+
+def gravity_line(g) -> str:
+    """Which up the boxes stand along, as ism-client prints it: a found floor or a guess."""
+    source = service_pb2.UpSource.Name(g.source).replace("UP_SOURCE_", "").lower()
+    line = f"up: ({g.up.x:.2f}, {g.up.y:.2f}, {g.up.z:.2f}) {source}"
+    line += f", floor at {g.floor_level:.2f} m ({g.floor_points} points)" if g.HasField("floor_level") else \
+        ", no floor found"
+    if g.walls:
+        line += f", {g.walls} walls ({g.wall_points} points)"
+    return line
+
+
+def _up(text: str):
+    try:
+        values = [float(v) for v in text.split(",")]
+    except ValueError:
+        values = []
+    if len(values) != 3:
+        raise argparse.ArgumentTypeError(f"'{text}' is not three numbers X,Y,Z")
+    return values
 
 
 def _recognize(client, args):
     options = dict(model=args.model, categories=args.category or (), min_score=args.min_score,
-                   max_hypotheses=args.max_hypotheses)
+                   max_hypotheses=args.max_hypotheses, preset=args.preset, min_confidence=args.min_confidence,
+                   up=args.up)
     if args.file.lower().endswith(".png"):
         with open(args.file, "rb") as f:
             depth = f.read()
@@ -65,6 +91,12 @@ def main(argv=None) -> int:
     rec.add_argument("--category", action="append", help="only this category (repeatable)")
     rec.add_argument("--min-score", type=float, help="override the model's detection threshold")
     rec.add_argument("--max-hypotheses", type=int, default=0)
+    rec.add_argument("--preset", choices=("default", "seed"),
+                     help="default: calibrated confidence, one answer per object; seed: the seed's pipeline")
+    rec.add_argument("--min-confidence", type=float,
+                     help="default preset: drop hypotheses less confident (server default 0.5; at most 0.99)")
+    rec.add_argument("--up", type=_up, metavar="X,Y,Z",
+                     help="the scene's up in its coordinates, when known (default: the server finds the floor)")
     for name, default in (("fx", KINECT.fx), ("fy", KINECT.fy), ("cx", KINECT.cx), ("cy", KINECT.cy),
                           ("depth-scale", KINECT.depth_scale)):
         rec.add_argument(f"--{name}", type=float, default=default, help=f"depth PNG intrinsics (default {default})")

@@ -20,6 +20,7 @@ _POLICIES = {
 }
 _CODEBOOKS = {"global": model_pb2.CODEBOOK_TYPE_GLOBAL, "separated": model_pb2.CODEBOOK_TYPE_SEPARATED}
 _ACTIVATIONS = {"knn": model_pb2.ACTIVATION_STRATEGY_KNN, "cutoff": model_pb2.ACTIVATION_STRATEGY_CUTOFF}
+_PRESETS = {"default": service_pb2.RECOGNITION_PRESET_DEFAULT, "seed": service_pb2.RECOGNITION_PRESET_SEED}
 _WEIGHTINGS = {
     "categorization": model_pb2.VOTE_WEIGHTING_CATEGORIZATION,
     "localization": model_pb2.VOTE_WEIGHTING_LOCALIZATION,
@@ -65,6 +66,7 @@ class Frame:
     intrinsics: Optional[Intrinsics] = None
     frame_id: Optional[int] = None  # None: numbered 0, 1, 2... in sending order
     timestamp_us: int = 0
+    up: Optional[Sequence[float]] = None  # this frame's up (x, y, z), when known: see cloud_scene()
 
 
 def _to_bytes(array, dtype: str, columns: int, what: str):
@@ -75,19 +77,38 @@ def _to_bytes(array, dtype: str, columns: int, what: str):
     return np.ascontiguousarray(a).tobytes(), a.shape[0]
 
 
-def cloud_scene(points, rgb=None, width: int = 0, height: int = 0):
-    """ism.v1.Scene from Nx3 points in metres (+ optional Nx3 uint8 colours)."""
+def _vector(value, what: str):
+    a = np.asarray(value, dtype=np.float64)
+    if a.shape != (3,):
+        raise ValueError(f"{what} must be three numbers (x, y, z), got shape {a.shape}")
+    return tuple(float(v) for v in a)
+
+
+def _set_up(scene, up):
+    """Scene.up from three numbers; the server checks that they make a direction (finite, not zero)."""
+    if up is not None:
+        x, y, z = _vector(up, "up")
+        scene.up.SetInParent()  # present even when all zero: the server is to refuse that, not ignore it
+        scene.up.x, scene.up.y, scene.up.z = x, y, z
+    return scene
+
+
+def cloud_scene(points, rgb=None, width: int = 0, height: int = 0, up=None):
+    """ism.v1.Scene from Nx3 points in metres (+ optional Nx3 uint8 colours). `up`: the scene's up
+    (x, y, z) in the points' frame when known (a z-up room scan: (0, 0, 1)); else the server looks
+    for the floor."""
     xyz, n = _to_bytes(points, "<f4", 3, "points")
     cloud = service_pb2.PointCloud(xyz=xyz, width=width, height=height)
     if rgb is not None:
         cloud.rgb, n_rgb = _to_bytes(rgb, "u1", 3, "rgb")
         if n_rgb != n:
             raise ValueError(f"rgb has {n_rgb} rows but points has {n}")
-    return service_pb2.Scene(cloud=cloud)
+    return _set_up(service_pb2.Scene(cloud=cloud), up)
 
 
-def depth_scene(depth, intrinsics: Intrinsics):
-    """ism.v1.Scene from a depth image: PNG file bytes, or an HxW uint16 array of raw depth units."""
+def depth_scene(depth, intrinsics: Intrinsics, up=None):
+    """ism.v1.Scene from a depth image: PNG file bytes, or an HxW uint16 array of raw depth units.
+    `up` as for cloud_scene(), in the camera's optical frame (x right, y down, z forward)."""
     image = service_pb2.DepthImage(intrinsics=intrinsics.to_proto())
     if isinstance(depth, (bytes, bytearray, memoryview)):
         data = bytes(depth)
@@ -102,7 +123,7 @@ def depth_scene(depth, intrinsics: Intrinsics):
         image.encoding = service_pb2.DEPTH_ENCODING_RAW_UINT16_LE
         image.data = np.ascontiguousarray(a, dtype="<u2").tobytes()
         image.height, image.width = a.shape
-    return service_pb2.Scene(depth=image)
+    return _set_up(service_pb2.Scene(depth=image), up)
 
 
 def _pick(table: dict, value, what: str):
@@ -117,9 +138,14 @@ def _pick(table: dict, value, what: str):
 def recognition_options(model: str = "", categories: Sequence[str] = (), min_score: Optional[float] = None,
                         max_hypotheses: int = 0, codebook: Optional[str] = None, activation: Optional[str] = None,
                         k: int = 0, cutoff: float = 0.0, weighting: Optional[str] = None,
-                        return_keypoints: bool = False, box_selection: Optional[bool] = None):
+                        return_keypoints: bool = False, box_selection: Optional[bool] = None,
+                        preset: Optional[str] = None, min_confidence: Optional[float] = None,
+                        one_answer_per_object: Optional[bool] = None):
     """ism.v1.RecognitionOptions; strategy names are lower case (codebook 'global'|'separated',
-    activation 'knn'|'cutoff', weighting 'categorization'|'localization'|'activation')."""
+    activation 'knn'|'cutoff', weighting 'categorization'|'localization'|'activation').
+    preset 'default' (calibrated confidence, one answer per object) or 'seed' (the seed's
+    pipeline); min_confidence (default preset, in [0, 0.99]; the server's default is 0.5). None
+    leaves a field to the server's default."""
     options = service_pb2.RecognitionOptions(
         model=model, categories=list(categories), max_hypotheses=max_hypotheses, return_keypoints=return_keypoints,
         strategy=service_pb2.Strategy(codebook=_pick(_CODEBOOKS, codebook, "codebook"),
@@ -129,6 +155,11 @@ def recognition_options(model: str = "", categories: Sequence[str] = (), min_sco
         options.min_score = min_score
     if box_selection is not None:
         options.box_selection = box_selection
+    options.preset = _pick(_PRESETS, preset, "preset")
+    if min_confidence is not None:
+        options.min_confidence = min_confidence
+    if one_answer_per_object is not None:
+        options.one_answer_per_object = one_answer_per_object
     return options
 
 
@@ -231,17 +262,19 @@ class Client:
                                                options=options or service_pb2.RecognitionOptions())
         return self._stub.Recognize(request, timeout=self._deadline(timeout), metadata=self._metadata).result
 
-    def recognize_cloud(self, points, rgb=None, *, width: int = 0, height: int = 0, request_id: str = "",
+    def recognize_cloud(self, points, rgb=None, *, width: int = 0, height: int = 0, up=None, request_id: str = "",
                         timeout: Optional[float] = None, **options):
-        """Nx3 points in metres (numpy array or lists), optional Nx3 uint8 rgb. `options` are those
-        of recognition_options(). Returns ism.v1.RecognitionResult."""
-        return self.recognize(cloud_scene(points, rgb, width, height), recognition_options(**options),
+        """Nx3 points in metres (numpy array or lists), optional Nx3 uint8 rgb, `up` as for
+        cloud_scene(). `options` are those of recognition_options(). Returns
+        ism.v1.RecognitionResult: hypotheses most confident first, with confidence and
+        alternatives, and in `gravity` the up the boxes stand along."""
+        return self.recognize(cloud_scene(points, rgb, width, height, up), recognition_options(**options),
                               request_id=request_id, timeout=timeout)
 
-    def recognize_depth(self, depth, intrinsics: Intrinsics = KINECT, *, request_id: str = "",
+    def recognize_depth(self, depth, intrinsics: Intrinsics = KINECT, *, up=None, request_id: str = "",
                         timeout: Optional[float] = None, **options):
         """Depth as PNG bytes or an HxW uint16 array. Returns ism.v1.RecognitionResult."""
-        return self.recognize(depth_scene(depth, intrinsics), recognition_options(**options),
+        return self.recognize(depth_scene(depth, intrinsics, up), recognition_options(**options),
                               request_id=request_id, timeout=timeout)
 
     def stream_frames(self, frames: Iterable[Frame], policy: str = "every_frame", *,
@@ -259,9 +292,9 @@ class Client:
             try:
                 for index, frame in enumerate(frames):
                     if frame.depth is not None:
-                        scene = depth_scene(frame.depth, frame.intrinsics or KINECT)
+                        scene = depth_scene(frame.depth, frame.intrinsics or KINECT, frame.up)
                     else:
-                        scene = cloud_scene(frame.points, frame.rgb)
+                        scene = cloud_scene(frame.points, frame.rgb, up=frame.up)
                     request = service_pb2.StreamFramesRequest(
                         frame_id=index if frame.frame_id is None else frame.frame_id,
                         timestamp_us=frame.timestamp_us, scene=scene)

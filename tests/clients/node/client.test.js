@@ -119,6 +119,47 @@ test('client against a real ism-server', async (t) => {
     await assert.rejects(client.recognizeCloud(new Float32Array(10)), /multiple of 3/);
     await assert.rejects(client.recognizeDepth(Buffer.from('not a png'), SMALL), /not a PNG/);
     await assert.rejects(client.recognizeCloud(points, { weighting: 'heaviest' }), /unknown weighting/);
+    await assert.rejects(client.recognizeCloud(points, { preset: 'fancy' }), /unknown preset/);
+    await assert.rejects(client.recognizeCloud(points, { up: [0, 1] }), /up must be three numbers/);
+  });
+
+  await t.test('default preset: confidences in [0, 1], best first; the given up is reported back', async () => {
+    const result = await client.recognizeCloud(points, { up: [0, 0, 2], minConfidence: 0.01 });
+    assertValidResult(result, points.length / 3);
+    result.hypotheses.forEach((h, i) => {
+      assert.ok(h.confidence >= 0.01 && h.confidence <= 1, `confidence ${h.confidence}`);
+      if (i > 0) assert.ok(h.confidence <= result.hypotheses[i - 1].confidence, 'not most confident first');
+      for (const a of h.alternatives) assert.ok(a.category !== h.category && a.confidence <= h.confidence);
+      assert.equal(typeof h.uprightBox, 'boolean');
+    });
+    // A model trained before the gravity stage (no front-end gravity parameters) reports none.
+    if (model.frontEnd.gravity) {
+      assert.equal(result.gravity.source, 'UP_SOURCE_GIVEN');
+      assert.deepEqual([result.gravity.up.x, result.gravity.up.y, result.gravity.up.z], [0, 0, 1]);
+    } else {
+      assert.equal(result.gravity, null);
+    }
+  });
+
+  await t.test('seed preset: ranked by score over threshold, nothing merged', async () => {
+    const result = await client.recognizeCloud(points, { preset: 'seed', minScore: 0, boxSelection: false, maxHypotheses: 6 });
+    assert.ok(result.hypotheses.length > 0);
+    const relative = (h) => (h.threshold > 0 ? h.score / h.threshold : h.score);
+    result.hypotheses.forEach((h, i) => {
+      if (i > 0) assert.ok(relative(h) <= relative(result.hypotheses[i - 1]), 'not ranked by score / threshold');
+      assert.deepEqual(h.alternatives, []);
+    });
+  });
+
+  await t.test('bad up and minConfidence are INVALID_ARGUMENT naming the field', async () => {
+    const invalid = (pattern) => (e) => e instanceof IsmError && e.codeName === 'INVALID_ARGUMENT' && pattern.test(e.details);
+    await assert.rejects(client.recognizeCloud(points, { up: [0, 0, 0] }), invalid(/^scene\.up = \(0, 0, 0\)/));
+    await assert.rejects(client.recognizeCloud(points, { up: [NaN, 0, 1] }), invalid(/^scene\.up/));
+    await assert.rejects(client.recognizeCloud(points, { minConfidence: 1.5 }), invalid(/options\.min_confidence = 1\.5/));
+    const results = [];
+    for await (const r of client.streamFrames([{ points, up: [0, 0, 0] }, { points, up: [0, 0, 1] }])) results.push(r);
+    assert.deepEqual(results.map((r) => r.outcome), ['error', 'result']);
+    assert.match(results[0].error.message, /scene\.up/);
   });
 
   await t.test('streamFrames answers every frame in order and isolates a bad one', async () => {
