@@ -6,6 +6,7 @@
 #include <random>
 
 #include "core/recognition/recognizer.h"
+#include "server/untrusted_text.h"
 
 namespace ism::server {
 
@@ -35,8 +36,8 @@ void ServiceContext::recognize(const std::string& request_id, const v1::Scene& s
 
   std::string stages;
   for (const auto& [name, ms] : result.timings.stages) stages += fmt::format(" {}={:.1f}ms", name, ms);
-  spdlog::info("[{}] model={}@{} points={} keypoints={} hypotheses={} total={:.1f}ms{}", request_id, model->name,
-               model->info.version(), result.input_points, result.keypoints, result.hypotheses.size(),
+  spdlog::info("[{}] model={}@{} points={} keypoints={} hypotheses={} total={:.1f}ms{}", loggable(request_id),
+               model->name, model->info.version(), result.input_points, result.keypoints, result.hypotheses.size(),
                result.timings.total(), stages);
 }
 
