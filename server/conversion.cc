@@ -75,7 +75,7 @@ std::pair<uint32_t, uint32_t> pngSize(const std::string& png) {
   return {be32(16), be32(20)};
 }
 
-Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
+Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits, const ShouldStop& should_stop) {
   const DepthIntrinsics intrinsics = wire::intrinsicsFromProto(depth.intrinsics(), "scene.depth.intrinsics");
   const uint64_t width = depth.width(), height = depth.height();
   switch (depth.encoding()) {
@@ -102,7 +102,7 @@ Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
         throw invalid("scene.depth is declared " + std::to_string(width) + "x" + std::to_string(height) +
                       " but the PNG is " + std::to_string(png_width) + "x" + std::to_string(png_height));
       }
-      return decodeDepthPng(depth.data(), intrinsics, "request PNG");
+      return decodeDepthPng(depth.data(), intrinsics, "request PNG", should_stop);
     }
     case v1::DEPTH_ENCODING_UNSPECIFIED:
       throw invalid("scene.depth.encoding is unset: use DEPTH_ENCODING_RAW_UINT16_LE or DEPTH_ENCODING_PNG");
@@ -159,7 +159,8 @@ void SceneBuffers::recycle(Scene& scene) {
   }
 }
 
-Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers) {
+Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers,
+                     const ShouldStop& should_stop) {
   const Eigen::Vector3f origin = wire::fromProto(scene.sensor_origin());
   Eigen::Quaternionf orientation = wire::fromProto(scene.sensor_orientation());
   if (!origin.allFinite() || !orientation.coeffs().allFinite()) {
@@ -177,7 +178,7 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
       out = cloudScene(scene.cloud(), limits, buffers);
       break;
     case v1::Scene::kDepth: {
-      out = depthScene(scene.depth(), limits);
+      out = depthScene(scene.depth(), limits, should_stop);
       // The image's points are in the camera frame: move them where the caller wants answers.
       Eigen::Affine3f pose = Eigen::Translation3f(origin) * orientation;
       if (!pose.matrix().isIdentity()) pcl::transformPointCloud(*out.cloud, *out.cloud, pose);

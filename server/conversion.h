@@ -41,7 +41,9 @@ struct SceneBuffers {
 
 // Points go straight from the request's bytes into the scene's cloud. With `buffers`, the
 // cloud and pixel indices reuse its allocations (and take them: recycle them afterwards).
-Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers = nullptr);
+// `should_stop` ends a long PNG decode when the caller gives up.
+Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers = nullptr,
+                     const ShouldStop& should_stop = {});
 
 // Unset strategy fields take the activation parameters the model's thresholds were computed
 // with. Categories are core's to check (recognize() refuses unknown ones before any work).

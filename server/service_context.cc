@@ -26,7 +26,7 @@ void ServiceContext::recognize(const std::string& request_id, const v1::Scene& s
   {
     ScopedStage stage(&decode_timing, "decode");
     core_options = optionsFromProto(options, model->model);
-    decoded = sceneFromProto(scene, limits, &buffers);
+    decoded = sceneFromProto(scene, limits, &buffers, should_stop);
   }
   core_options.should_stop = should_stop;
   RecognitionResult result = ism::recognize(model->model, decoded, core_options);

@@ -23,6 +23,7 @@
 
 #include "core/io/file_bytes.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "tests/common/png_bomb.h"
 #include "tests/service/service_fixture.h"
 
 namespace ism::testing {
@@ -423,6 +424,16 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
       {"PNG header announcing 100000 x 100000",
        with(png, [](auto* s) { s->mutable_depth()->set_data(ism::testing::png(100000, 100000, 16, 0, "")); }),
        exhausted, "scene.depth PNG pixels has 10000000000, more than the server's limit of 100000"},
+      // 1x1 whose data inflates to 512 MB (~0.5 MB on the wire): refused after 3 bytes, not after a
+      // worker spent seconds inflating it.
+      {"PNG decompression bomb",
+       with(png,
+            [](auto* s) {
+              s->mutable_depth()->clear_width();
+              s->mutable_depth()->clear_height();
+              s->mutable_depth()->set_data(ism::testing::depthPngBomb(512));
+            }),
+       invalid, "request PNG: the PNG's image data inflates to more than the 3 bytes a 1x1 16-bit image holds"},
       // Options.
       {"negative k", options([](auto* o) {
          o->mutable_strategy()->set_activation(v1::ACTIVATION_STRATEGY_KNN);
