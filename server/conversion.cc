@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include "core/common/error.h"
@@ -191,6 +192,38 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
   out.sensor_orientation = orientation;
   out.source = "request";
   return out;
+}
+
+size_t dropPointsBeyondRange(Scene* scene, float max_range_m) {
+  auto& points = scene->cloud->points;
+  const bool organized = !scene->pixel_index.empty();
+  const double limit = static_cast<double>(max_range_m) * max_range_m;
+  const Eigen::Vector3d origin = scene->sensor_origin.cast<double>();
+  double nearest = std::numeric_limits<double>::infinity();
+  size_t kept = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    // In double: the square of 1e30 is not a float.
+    const double distance = (points[i].getVector3fMap().cast<double>() - origin).squaredNorm();
+    if (distance > limit) {
+      nearest = std::min(nearest, distance);
+      continue;
+    }
+    points[kept] = points[i];
+    if (organized) scene->pixel_index[kept] = scene->pixel_index[i];
+    ++kept;
+  }
+  const size_t dropped = points.size() - kept;
+  if (kept == 0) {
+    throw invalid(fmt::format("scene: all {} points are farther than {:g} m from scene.sensor_origin (the nearest "
+                              "at {:g} m): coordinates must be in metres, the sensor origin where the sensor was "
+                              "(or raise ism-server's --max-range-m)",
+                              dropped, max_range_m, std::sqrt(nearest)));
+  }
+  points.resize(kept);
+  if (organized) scene->pixel_index.resize(kept);
+  scene->cloud->width = static_cast<uint32_t>(kept);
+  scene->cloud->height = 1;
+  return dropped;
 }
 
 RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Model& model) {

@@ -58,6 +58,11 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
   app.add_option("--max-pixels", o.limits.max_pixels, "largest depth image accepted (pixels)")
       ->envname("ISM_MAX_PIXELS")
       ->capture_default_str();
+  app.add_option("--max-range-m", o.limits.max_range_m,
+                 "points farther than this from the scene's sensor origin are dropped (counted in the result)")
+      ->envname("ISM_MAX_RANGE_M")
+      ->check(CLI::Range(0.1f, 1e6f))
+      ->capture_default_str();
   app.add_option("--metrics-listen", o.metrics_listen, "Prometheus /metrics address; empty disables it")
       ->envname("ISM_METRICS_LISTEN")
       ->capture_default_str();

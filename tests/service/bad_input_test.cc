@@ -392,12 +392,15 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
               s->mutable_cloud()->set_xyz(packed(xyz));
             }),
        invalid, "none of its 100 points is finite"},
-      {"finite coordinates near the float limit",
+      // Among points in range such points are dropped (PointsBeyondTheSensorRangeAreDroppedAndCounted).
+      {"only finite coordinates near the float limit",
        with(cloud,
             [](auto* s) {
-              *s->mutable_cloud()->mutable_xyz() += packed({1e30f, 1e30f, 1e30f, -3e38f, 0, 3e38f});
+              s->mutable_cloud()->clear_width();
+              s->mutable_cloud()->clear_height();
+              s->mutable_cloud()->set_xyz(packed({1e30f, 1e30f, 1e30f, -3e38f, 0, 3e38f}));
             }),
-       invalid, "too small for coordinates up to"},
+       invalid, "scene: all 2 points are farther than 100 m from scene.sensor_origin"},
       {"NaN sensor origin", with(cloud, [=](auto* s) { s->mutable_sensor_origin()->set_y(nan); }), invalid,
        "scene.sensor_origin / sensor_orientation contain NaN or Inf"},
       {"Inf sensor orientation", with(raw, [=](auto* s) { s->mutable_sensor_orientation()->set_w(inf); }), invalid,
@@ -501,6 +504,46 @@ TEST_F(BadInputTest, NonFinitePointsAmongFiniteOnesAreDropped) {
   ASSERT_TRUE(status.ok()) << status.error_message();
   EXPECT_EQ(response.result().input_points(), finite);
   EXPECT_GT(response.result().keypoints(), 0u);
+}
+
+// A stray point far beyond any sensor's range (1e30 here) used to fail the frame in the voxel
+// grid: such points are dropped and counted, and the frame is recognised from the rest.
+TEST_F(BadInputTest, PointsBeyondTheSensorRangeAreDroppedAndCounted) {
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = *cloud_;
+  std::string* xyz = request.mutable_scene()->mutable_cloud()->mutable_xyz();
+  const size_t in_range = xyz->size() / 12;
+  std::vector<float> stray;
+  for (int i = 0; i < 1000; ++i) stray.insert(stray.end(), {1e30f, (i % 2 ? -1 : 1) * 1e30f, 1.0f});
+  stray.insert(stray.end(), {150.0f, 0.0f, 0.0f});  // beyond the default 100 m
+  *xyz += packed(stray);
+  v1::RecognizeResponse response;
+  const grpc::Status status = recognize(request, &response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(response.result().input_points(), in_range);
+  EXPECT_EQ(response.result().out_of_range_points(), 1001u);
+  EXPECT_GT(response.result().keypoints(), 0u);
+}
+
+// A scene in the wrong units (here millimetres ten times over) has nothing within range: it is
+// refused with what to check, not with a voxel count.
+TEST_F(BadInputTest, ASceneInTheWrongUnitsIsRefusedSayingSo) {
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = *cloud_;
+  std::string* xyz = request.mutable_scene()->mutable_cloud()->mutable_xyz();
+  for (size_t at = 0; at < xyz->size(); at += 4) {
+    float v;
+    std::memcpy(&v, xyz->data() + at, 4);
+    v *= 1e4f;
+    std::memcpy(xyz->data() + at, &v, 4);
+  }
+  auto* origin = request.mutable_scene()->mutable_sensor_origin();
+  origin->set_x(origin->x() * 1e4f);
+  origin->set_y(origin->y() * 1e4f);
+  origin->set_z(origin->z() * 1e4f);
+  v1::RecognizeResponse response;
+  EXPECT_TRUE(hasStatus(recognize(request, &response), grpc::StatusCode::INVALID_ARGUMENT,
+                        " points are farther than 100 m from scene.sensor_origin (the nearest at "));
 }
 
 // A frame fails alone with the same status as the request would, and the stream goes on.
