@@ -75,6 +75,13 @@ void Server::warnAboutExposure() const {
                    options_.listen);
     }
   }
+  // /metrics is plain HTTP without tokens whatever the gRPC side uses.
+  if (!options_.metrics_listen.empty() && !isLoopbackAddress(options_.metrics_listen)) {
+    spdlog::warn("/metrics on {} is reachable from other machines, in plain HTTP without tokens{}: give "
+                 "--metrics-listen 127.0.0.1:9464, or keep the port behind a firewall",
+                 options_.metrics_listen,
+                 options_.tls_cert.empty() && !access_.authEnabled() ? "" : " (unlike the gRPC port)");
+  }
   if (access_.authEnabled() && options_.admin_token_file.empty()) {
     spdlog::info("no --admin-token-file: LoadModel, UnloadModel and ReloadModels are refused");
   }

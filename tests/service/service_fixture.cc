@@ -30,8 +30,6 @@ extern char** environ;
 namespace ism::testing {
 namespace fs = std::filesystem;
 
-namespace {
-
 int freePort() {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in address{};
@@ -43,6 +41,8 @@ int freePort() {
   close(fd);
   return ntohs(address.sin_port);
 }
+
+namespace {
 
 void writeObj(const Mesh& mesh, const fs::path& path) {
   std::ofstream out(path);

@@ -14,6 +14,9 @@
 
 namespace ism::testing {
 
+// A TCP port on 127.0.0.1 that nothing listens on right now.
+int freePort();
+
 // Trains (first call in the build tree) or reuses a two-category model; returns the directory
 // holding it as default.ismm. Cached because every test process starts its own server.
 std::string tinyModelDirectory();
