@@ -192,6 +192,12 @@ std::optional<v1::FrameResult> FrameStream::process(const Frame& frame, const st
   for (uint64_t id : skipped) out.add_skipped_frame_ids(id);
   grpc::Status status;
   try {
+    // Held while it is recognised; a frame that does not fit fails alone, as bad input does.
+    std::unique_ptr<Admission::Ticket> ticket;
+    if (grpc::Status refused = service_.admission.admit(frame.request.ByteSizeLong(), "this frame", &ticket);
+        !refused.ok()) {
+      throw Error(ErrorCode::kResourceExhausted, refused.error_message());
+    }
     service_.recognize(stream_id_ + "/" + std::to_string(frame.request.frame_id()), frame.request.scene(),
                        frame.settings->options, should_stop_, out.mutable_result());
   } catch (...) {

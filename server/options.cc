@@ -60,6 +60,12 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
       ->envname("ISM_MAX_MODEL_MB")
       ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();
+  app.add_option("--max-queued-mb", o.max_queued_mb,
+                 "MB of recognition requests (as sent) held at once, queued or running; beyond it requests are "
+                 "refused RESOURCE_EXHAUSTED at once (0: no bound)")
+      ->envname("ISM_MAX_QUEUED_MB")
+      ->check(CLI::Range(size_t{0}, size_t{1} << 20))
+      ->capture_default_str();
   app.add_option("--max-points", o.limits.max_points, "largest cloud accepted (points)")
       ->envname("ISM_MAX_POINTS")
       ->capture_default_str();

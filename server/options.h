@@ -16,6 +16,7 @@ struct ServerOptions {
   int threads_per_request = 0; // OpenMP threads of one recognition; 0: cores / threads, at least 1
   int max_message_mb = 64;     // largest request or response
   size_t max_model_mb = 256;   // largest model file read
+  size_t max_queued_mb = 256;  // requests held at once, queued or running, as sent (0: no bound)
   InputLimits limits;
   // Empty: no /metrics. ":PORT" takes the host of `listen`, so that a server kept to loopback
   // does not expose its metrics to the network (resolved by parseServerOptions).

@@ -102,9 +102,22 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     case RunsOn::kCallbackThread:
       call();
       break;
-    case RunsOn::kWorkers:
-      context_.pool.submit(std::move(call));
+    case RunsOn::kWorkers: {
+      // Refused before it waits in memory for a worker (see admission.h).
+      std::unique_ptr<Admission::Ticket> ticket;
+      if (grpc::Status refused = context_.admission.admit(request_bytes->Length(), "this request", &ticket);
+          !refused.ok()) {
+        finish(context, reactor, rpc, requestId(""), refused, 0);
+        break;
+      }
+      // shared: the pool's tasks are copyable std::functions.
+      context_.pool.submit(
+          [call = std::move(call), held = std::shared_ptr<Admission::Ticket>(std::move(ticket))]() mutable {
+            call();
+            held.reset();  // at once, not when the pool drops the task
+          });
       break;
+    }
     case RunsOn::kAdminThread:
       context_.admin_pool.submit(std::move(call));
       break;

@@ -30,6 +30,7 @@ Server::Server(const ServerOptions& options)
     : options_(options),
       models_(options.model_dir, options.max_model_mb << 20),
       metrics_(options.metrics_listen),
+      admission_(options.max_queued_mb << 20, &health_),
       pool_(options.threads, options.threads_per_request),
       access_(accessParams(options)) {
   models_.loadDirectory();
@@ -41,7 +42,8 @@ Server::Server(const ServerOptions& options)
   metrics_.setLoadedModels(models_.size());
   health_.setModels(models_.size());
   warnAboutExposure();
-  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, admin_pool_, metrics_, health_, options.limits}, access_);
+  service_ = std::make_unique<RecognizerService>(
+      ServiceContext{models_, pool_, admin_pool_, metrics_, health_, admission_, options.limits}, access_);
 
   const auto credentials = options.tls_cert.empty()
                                ? grpc::InsecureServerCredentials()
