@@ -686,13 +686,15 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
   fs::create_directories(dir);
   const std::string model = readFileBytes(tinyModelDirectory() + "/default.ismm");
   writeFileBytes((dir / "default.ismm").string(), model);
-  ServerProcess server({"--models", dir.string(), "--max-model-mb", "1"});
+  // The smallest limit in MB the test model fits under (its size follows what training stores).
+  const size_t limit_mb = model.size() / (1 << 20) + 1;
+  ServerProcess server({"--models", dir.string(), "--max-model-mb", std::to_string(limit_mb)});
   fs::create_directories(dir / "a_directory.ismm");
   writeFileBytes((dir / "truncated.ismm").string(), model.substr(0, model.size() / 2));
   writeFileBytes((dir / "garbage.ismm").string(), std::string("\x00\x01\x02 this is no model", 21));
   writeFileBytes((dir / "empty.ismm").string(), "");
   writeFileBytes((dir / "secret.ismm").string(), "SECRET-API-KEY-0123456789abcdef!");
-  writeFileBytes((dir / "large.ismm").string(), std::string((1 << 20) + 1, 'x'));
+  writeFileBytes((dir / "large.ismm").string(), std::string((limit_mb << 20) + 1, 'x'));
   std::string damaged = model;
   damaged[damaged.size() / 2] ^= 0x5a;
   writeFileBytes((dir / "damaged.ismm").string(), damaged);
@@ -721,7 +723,8 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
       {"other", path("damaged.ismm"), failed,
        path("damaged.ismm") + ": CRC-32 mismatch (the file is truncated or damaged)"},
       {"other", path("large.ismm"), grpc::StatusCode::RESOURCE_EXHAUSTED,
-       path("large.ismm") + ": larger than the 1048576 bytes a model file may have here"},
+       path("large.ismm") + ": larger than the " + std::to_string(limit_mb << 20) +
+           " bytes a model file may have here"},
       // Not regular files: refused before a byte is read (a FIFO would block, /dev/zero never end).
       {"other", path("a_directory.ismm"), not_found, path("a_directory.ismm") + unreadable},
       {"other", path("fifo.ismm"), not_found, path("fifo.ismm") + unreadable},
