@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <limits>
 #include <vector>
 
 #include "core/common/error.h"
@@ -75,7 +76,7 @@ std::pair<uint32_t, uint32_t> pngSize(const std::string& png) {
   return {be32(16), be32(20)};
 }
 
-Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
+Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits, const ShouldStop& should_stop) {
   const DepthIntrinsics intrinsics = wire::intrinsicsFromProto(depth.intrinsics(), "scene.depth.intrinsics");
   const uint64_t width = depth.width(), height = depth.height();
   switch (depth.encoding()) {
@@ -102,7 +103,7 @@ Scene depthScene(const v1::DepthImage& depth, const InputLimits& limits) {
         throw invalid("scene.depth is declared " + std::to_string(width) + "x" + std::to_string(height) +
                       " but the PNG is " + std::to_string(png_width) + "x" + std::to_string(png_height));
       }
-      return decodeDepthPng(depth.data(), intrinsics, "request PNG");
+      return decodeDepthPng(depth.data(), intrinsics, "request PNG", should_stop);
     }
     case v1::DEPTH_ENCODING_UNSPECIFIED:
       throw invalid("scene.depth.encoding is unset: use DEPTH_ENCODING_RAW_UINT16_LE or DEPTH_ENCODING_PNG");
@@ -159,7 +160,8 @@ void SceneBuffers::recycle(Scene& scene) {
   }
 }
 
-Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers) {
+Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers,
+                     const ShouldStop& should_stop) {
   const Eigen::Vector3f origin = wire::fromProto(scene.sensor_origin());
   Eigen::Quaternionf orientation = wire::fromProto(scene.sensor_orientation());
   if (!origin.allFinite() || !orientation.coeffs().allFinite()) {
@@ -178,7 +180,7 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
       out = cloudScene(scene.cloud(), limits, buffers);
       break;
     case v1::Scene::kDepth: {
-      out = depthScene(scene.depth(), limits);
+      out = depthScene(scene.depth(), limits, should_stop);
       // The image's points are in the camera frame: move them where the caller wants answers.
       Eigen::Affine3f pose = Eigen::Translation3f(origin) * orientation;
       if (!pose.matrix().isIdentity()) pcl::transformPointCloud(*out.cloud, *out.cloud, pose);
@@ -192,6 +194,38 @@ Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuf
   out.up = up;
   out.source = "request";
   return out;
+}
+
+size_t dropPointsBeyondRange(Scene* scene, float max_range_m) {
+  auto& points = scene->cloud->points;
+  const bool organized = !scene->pixel_index.empty();
+  const double limit = static_cast<double>(max_range_m) * max_range_m;
+  const Eigen::Vector3d origin = scene->sensor_origin.cast<double>();
+  double nearest = std::numeric_limits<double>::infinity();
+  size_t kept = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    // In double: the square of 1e30 is not a float.
+    const double distance = (points[i].getVector3fMap().cast<double>() - origin).squaredNorm();
+    if (distance > limit) {
+      nearest = std::min(nearest, distance);
+      continue;
+    }
+    points[kept] = points[i];
+    if (organized) scene->pixel_index[kept] = scene->pixel_index[i];
+    ++kept;
+  }
+  const size_t dropped = points.size() - kept;
+  if (kept == 0) {
+    throw invalid(fmt::format("scene: all {} points are farther than {:g} m from scene.sensor_origin (the nearest "
+                              "at {:g} m): coordinates must be in metres, the sensor origin where the sensor was "
+                              "(or raise ism-server's --max-range-m)",
+                              dropped, max_range_m, std::sqrt(nearest)));
+  }
+  points.resize(kept);
+  if (organized) scene->pixel_index.resize(kept);
+  scene->cloud->width = static_cast<uint32_t>(kept);
+  scene->cloud->height = 1;
+  return dropped;
 }
 
 RecognitionOptions optionsFromProto(const v1::RecognitionOptions& in, const Model& model) {

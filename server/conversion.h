@@ -15,6 +15,9 @@ namespace ism::server {
 struct InputLimits {
   size_t max_points = 4'000'000;   // cloud points per scene
   size_t max_pixels = 4'194'304;   // depth pixels per image (2048 x 2048)
+  // Metres from the sensor origin beyond which a point is a stray measurement, not the room: a
+  // Kinect sees up to ~10 m, and one point at 1e30 would stretch the voxel grid past its range.
+  float max_range_m = 100.0f;
 };
 
 // The service decodes its messages itself rather than leaving it to gRPC, which answers a
@@ -41,7 +44,14 @@ struct SceneBuffers {
 
 // Points go straight from the request's bytes into the scene's cloud. With `buffers`, the
 // cloud and pixel indices reuse its allocations (and take them: recycle them afterwards).
-Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers = nullptr);
+// `should_stop` ends a long PNG decode when the caller gives up.
+Scene sceneFromProto(const v1::Scene& scene, const InputLimits& limits, SceneBuffers* buffers = nullptr,
+                     const ShouldStop& should_stop = {});
+
+// Drops the points farther than `max_range_m` from the scene's sensor origin (keeping an
+// organized scene's pixel indices aligned) and returns how many. Throws kInvalidInput when none
+// is left: such a scene is in other units than metres, or its sensor_origin is wrong.
+size_t dropPointsBeyondRange(Scene* scene, float max_range_m);
 
 // Unset strategy fields take the activation parameters the model's thresholds were computed
 // with; the preset and its options are wire::answerOptionsFromProto's. Categories are core's to

@@ -4,6 +4,7 @@
 
 #include "core/common/error.h"
 #include "server/status_mapping.h"
+#include "server/untrusted_text.h"
 
 namespace ism::server {
 
@@ -41,7 +42,7 @@ FrameStream::FrameStream(const ServiceContext& service, grpc::CallbackServerCont
       stream_id_(requestId("")),
       should_stop_(service.stopper(context, &cancelled_)) {
   service_.metrics.streamOpened();
-  spdlog::info("[{}] stream opened by {}", stream_id_, context_->peer());
+  spdlog::info("[{}] stream opened by {}", stream_id_, loggable(context_->peer()));
   reading_ = true;
   StartRead(&read_buffer_);
   if (!open_.add(this)) shutDown();  // opened while the server is stopping
@@ -191,6 +192,12 @@ std::optional<v1::FrameResult> FrameStream::process(const Frame& frame, const st
   for (uint64_t id : skipped) out.add_skipped_frame_ids(id);
   grpc::Status status;
   try {
+    // Held while it is recognised; a frame that does not fit fails alone, as bad input does.
+    std::unique_ptr<Admission::Ticket> ticket;
+    if (grpc::Status refused = service_.admission.admit(frame.request.ByteSizeLong(), "this frame", &ticket);
+        !refused.ok()) {
+      throw Error(ErrorCode::kResourceExhausted, refused.error_message());
+    }
     service_.recognize(stream_id_ + "/" + std::to_string(frame.request.frame_id()), frame.request.scene(),
                        frame.settings->options, should_stop_, out.mutable_result());
   } catch (...) {
@@ -200,7 +207,7 @@ std::optional<v1::FrameResult> FrameStream::process(const Frame& frame, const st
     out.mutable_error()->set_code(status.error_code());
     out.mutable_error()->set_message(status.error_message());
     spdlog::warn("[{}/{}] frame failed: {}: {}", stream_id_, frame.request.frame_id(),
-                 statusCodeName(status.error_code()), status.error_message());
+                 statusCodeName(status.error_code()), loggable(status.error_message(), kMaxStatusMessage));
   }
   service_.metrics.recordRequest(
       "StreamFrames.frame", status.error_code(),
@@ -278,7 +285,7 @@ void FrameStream::OnDone() {
   service_.metrics.recordRequest("StreamFrames", final_status_.error_code(), seconds);
   spdlog::info("[{}] stream closed: {} frames in {:.1f}s, {}{}", stream_id_, frames_, seconds,
                statusCodeName(final_status_.error_code()),
-               final_status_.ok() ? "" : ": " + final_status_.error_message());
+               final_status_.ok() ? "" : ": " + loggable(final_status_.error_message(), kMaxStatusMessage));
   delete this;
 }
 

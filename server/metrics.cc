@@ -1,5 +1,6 @@
 #include "server/metrics.h"
 
+#include "core/common/error.h"
 #include "server/status_mapping.h"
 
 namespace ism::server {
@@ -50,10 +51,22 @@ Metrics::Metrics(const std::string& listen)
                          .Help("Models currently loaded")
                          .Register(*registry_)
                          .Add({})) {
-  if (!listen.empty()) {
-    exposer_ = std::make_unique<prometheus::Exposer>(listen);
-    exposer_->RegisterCollectable(registry_);
+  if (listen.empty()) return;
+  // A scrape is one short request: a connection that sends nothing is closed after
+  // request_timeout_ms, so that a few idle or half-open connections cannot hold every thread
+  // (civetweb's default waits 30 s with 2 threads) and make scrapes time out.
+  std::vector<std::string> options{"listening_ports", listen,        "num_threads",       "8",
+                                   "request_timeout_ms", "2000",     "connection_queue",  "64",
+                                   "enable_keep_alive",  "no"};
+  try {
+    exposer_ = std::make_unique<prometheus::Exposer>(std::move(options));
+  } catch (const std::exception&) {
+    // civetweb only says "null context when constructing CivetServer".
+    throw Error(ErrorCode::kIo, "cannot serve /metrics on " + listen +
+                                    " (--metrics-listen): the port is taken, or the address is not one of this "
+                                    "machine's (give another, or an empty one to serve no metrics)");
   }
+  exposer_->RegisterCollectable(registry_);
 }
 
 void Metrics::recordRequest(const std::string& rpc, grpc::StatusCode code, double seconds) {

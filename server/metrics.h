@@ -18,7 +18,8 @@ namespace ism::server {
 
 class Metrics {
  public:
-  // Empty `listen` keeps counting but serves nothing. Throws when the address cannot be bound.
+  // Empty `listen` keeps counting but serves nothing. Throws ism::Error naming the address when
+  // it cannot be bound.
   explicit Metrics(const std::string& listen);
 
   void recordRequest(const std::string& rpc, grpc::StatusCode code, double seconds);

@@ -1,6 +1,7 @@
 #include "server/model_registry.h"
 
 #include <algorithm>
+#include <cctype>
 #include <chrono>
 #include <filesystem>
 
@@ -26,10 +27,32 @@ std::vector<fs::path> modelFiles(const std::string& directory) {
   return files;
 }
 
+// Names travel in messages, logs and metric labels: short, and nothing that needs escaping.
+void checkModelName(const std::string& name, const std::string& path) {
+  constexpr size_t kMaxName = 64;
+  const bool valid = !name.empty() && name.size() <= kMaxName && name[0] != '.' &&
+                     std::all_of(name.begin(), name.end(), [](char c) {
+                       return std::isalnum(static_cast<unsigned char>(c)) || c == '.' || c == '_' || c == '-';
+                     });
+  if (!valid) {
+    throw Error(ErrorCode::kInvalidInput, "a model name (here of " + std::to_string(name.size()) +
+                                              " bytes, for " + path.substr(0, 256) + ") must be 1 to " +
+                                              std::to_string(kMaxName) +
+                                              " letters, digits, '.', '_' or '-', not starting with '.'");
+  }
+}
+
+// A name a client asked for, in quotes; no loaded name is longer than this.
+std::string quoted(const std::string& name) {
+  constexpr size_t kShown = 64;
+  if (name.size() <= kShown) return "'" + name + "'";
+  return "'" + name.substr(0, kShown) + "...' (" + std::to_string(name.size()) + " bytes)";
+}
+
 }  // namespace
 
 std::shared_ptr<const LoadedModel> ModelRegistry::readModel(const std::string& name, const std::string& path) const {
-  if (name.empty()) throw Error(ErrorCode::kInvalidInput, "model name is empty (path " + path + ")");
+  checkModelName(name, path);
   auto start = std::chrono::steady_clock::now();
   // Read once: the same bytes give the model, its description and its version, so they agree.
   ModelFileContents file = readModelFile(path, max_file_bytes_);
@@ -102,7 +125,7 @@ void ModelRegistry::unload(const std::string& name) {
   std::lock_guard<std::mutex> changing(changes_);
   std::lock_guard<std::mutex> lock(mutex_);
   if (models_.erase(name) == 0) {
-    throw Error(ErrorCode::kNotFound, "model '" + name + "' is not loaded (loaded: " + loadedNames() + ")");
+    throw Error(ErrorCode::kNotFound, "model " + quoted(name) + " is not loaded (loaded: " + loadedNames() + ")");
   }
   unloaded_.insert(name);
 }
@@ -149,7 +172,7 @@ std::shared_ptr<const LoadedModel> ModelRegistry::get(const std::string& name) c
   }
   auto it = models_.find(name);
   if (it == models_.end()) {
-    throw Error(ErrorCode::kNotFound, "unknown model '" + name + "' (loaded: " + loadedNames() + ")");
+    throw Error(ErrorCode::kNotFound, "unknown model " + quoted(name) + " (loaded: " + loadedNames() + ")");
   }
   return it->second;
 }
@@ -168,8 +191,13 @@ size_t ModelRegistry::size() const {
 
 std::string ModelRegistry::loadedNames() const {
   if (models_.empty()) return "none";
+  constexpr size_t kMaxListed = 16;  // keeps the message short however many are loaded
   std::string names;
-  for (const auto& entry : models_) names += (names.empty() ? "" : ", ") + entry.first;
+  size_t listed = 0;
+  for (const auto& entry : models_) {
+    if (listed++ == kMaxListed) return names + " and " + std::to_string(models_.size() - kMaxListed) + " more";
+    names += (names.empty() ? "" : ", ") + entry.first;
+  }
   return names;
 }
 

@@ -23,6 +23,14 @@ int cores() { return static_cast<int>(std::max(1u, std::thread::hardware_concurr
 
 }  // namespace
 
+std::string metricsAddress(const std::string& grpc_listen, const std::string& metrics_listen) {
+  if (metrics_listen.empty() || metrics_listen[0] != ':') return metrics_listen;
+  const size_t colon = grpc_listen.rfind(':');
+  std::string host = colon == std::string::npos ? "" : grpc_listen.substr(0, colon);
+  if (grpc_listen.rfind("unix:", 0) == 0 || host == "localhost" || host.empty()) host = "127.0.0.1";
+  return host + metrics_listen;
+}
+
 std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit_code) {
   ServerOptions o;
   o.model_dir = defaultModelDirectory();
@@ -52,13 +60,25 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
       ->envname("ISM_MAX_MODEL_MB")
       ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();
+  app.add_option("--max-queued-mb", o.max_queued_mb,
+                 "MB of recognition requests (as sent) held at once, queued or running; beyond it requests are "
+                 "refused RESOURCE_EXHAUSTED at once (0: no bound)")
+      ->envname("ISM_MAX_QUEUED_MB")
+      ->check(CLI::Range(size_t{0}, size_t{1} << 20))
+      ->capture_default_str();
   app.add_option("--max-points", o.limits.max_points, "largest cloud accepted (points)")
       ->envname("ISM_MAX_POINTS")
       ->capture_default_str();
   app.add_option("--max-pixels", o.limits.max_pixels, "largest depth image accepted (pixels)")
       ->envname("ISM_MAX_PIXELS")
       ->capture_default_str();
-  app.add_option("--metrics-listen", o.metrics_listen, "Prometheus /metrics address; empty disables it")
+  app.add_option("--max-range-m", o.limits.max_range_m,
+                 "points farther than this from the scene's sensor origin are dropped (counted in the result)")
+      ->envname("ISM_MAX_RANGE_M")
+      ->check(CLI::Range(0.1f, 1e6f))
+      ->capture_default_str();
+  app.add_option("--metrics-listen", o.metrics_listen,
+                 "Prometheus /metrics address (plain HTTP); ':PORT' listens on --listen's host; empty disables it")
       ->envname("ISM_METRICS_LISTEN")
       ->capture_default_str();
   app.add_option("--drain-seconds", o.drain_seconds, "on SIGTERM, how long running calls may take to finish")
@@ -100,6 +120,7 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
     *exit_code = app.exit(e);
     return std::nullopt;
   }
+  o.metrics_listen = metricsAddress(o.listen, o.metrics_listen);
   if (o.threads_per_request == 0) o.threads_per_request = std::max(1, cores() / o.threads);
   return o;
 }

@@ -8,6 +8,7 @@
 #include "core/common/error.h"
 #include "server/frame_stream.h"
 #include "server/status_mapping.h"
+#include "server/untrusted_text.h"
 
 namespace ism::server {
 // A call counted as open until gRPC is done with it (its status sent): a shutdown that waits for
@@ -101,9 +102,22 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     case RunsOn::kCallbackThread:
       call();
       break;
-    case RunsOn::kWorkers:
-      context_.pool.submit(std::move(call));
+    case RunsOn::kWorkers: {
+      // Refused before it waits in memory for a worker (see admission.h).
+      std::unique_ptr<Admission::Ticket> ticket;
+      if (grpc::Status refused = context_.admission.admit(request_bytes->Length(), "this request", &ticket);
+          !refused.ok()) {
+        finish(context, reactor, rpc, requestId(""), refused, 0);
+        break;
+      }
+      // shared: the pool's tasks are copyable std::functions.
+      context_.pool.submit(
+          [call = std::move(call), held = std::shared_ptr<Admission::Ticket>(std::move(ticket))]() mutable {
+            call();
+            held.reset();  // at once, not when the pool drops the task
+          });
       break;
+    }
     case RunsOn::kAdminThread:
       context_.admin_pool.submit(std::move(call));
       break;
@@ -130,8 +144,9 @@ void RecognizerService::finish(grpc::CallbackServerContext* context, grpc::Serve
                                double seconds) {
   context_.metrics.recordRequest(rpc, status.error_code(), seconds);
   if (!status.ok()) {
-    spdlog::warn("[{}] {} from {} failed after {:.1f}ms: {}: {}", request_id, rpc, context->peer(), seconds * 1000,
-                 statusCodeName(status.error_code()), status.error_message());
+    spdlog::warn("[{}] {} from {} failed after {:.1f}ms: {}: {}", loggable(request_id), rpc,
+                 loggable(context->peer()), seconds * 1000, statusCodeName(status.error_code()),
+                 loggable(status.error_message(), kMaxStatusMessage));
   }
   reactor->Finish(status);
 }
@@ -155,8 +170,8 @@ grpc::ServerBidiReactor<grpc::ByteBuffer, grpc::ByteBuffer>* RecognizerService::
   std::unique_ptr<StreamSlot> slot;
   if (grpc::Status denied = access_.openStream(*context, &slot); !denied.ok()) {
     context_.metrics.recordRequest("StreamFrames", denied.error_code(), 0);
-    spdlog::warn("StreamFrames from {} refused: {}: {}", context->peer(), statusCodeName(denied.error_code()),
-                 denied.error_message());
+    spdlog::warn("StreamFrames from {} refused: {}: {}", loggable(context->peer()), statusCodeName(denied.error_code()),
+                 loggable(denied.error_message(), kMaxStatusMessage));
     return new RejectedStream(*this, denied);  // deletes itself in OnDone
   }
   return new FrameStream(context_, context, std::move(slot), streams_);  // deletes itself in OnDone
@@ -189,8 +204,8 @@ grpc::ServerUnaryReactor* RecognizerService::LoadModel(grpc::CallbackServerConte
         if (request.path().empty()) throw Error(ErrorCode::kInvalidInput, "LoadModel: path is empty");
         *response = context_.models.load(request.name(), request.path())->info;
         modelsChanged();
-        spdlog::info("[{}] loaded model {}@{} from {} in {:.1f}ms", request_id, response->name(),
-                     response->version(), response->path(), response->load_ms());
+        spdlog::info("[{}] loaded model {}@{} from {} in {:.1f}ms", loggable(request_id), response->name(),
+                     response->version(), loggable(response->path()), response->load_ms());
       });
 }
 
@@ -202,7 +217,7 @@ grpc::ServerUnaryReactor* RecognizerService::UnloadModel(grpc::CallbackServerCon
         if (request.name().empty()) throw Error(ErrorCode::kInvalidInput, "UnloadModel: name is empty");
         context_.models.unload(request.name());
         modelsChanged();
-        spdlog::info("[{}] unloaded model {}", request_id, request.name());
+        spdlog::info("[{}] unloaded model {}", loggable(request_id), loggable(request.name()));
       });
 }
 
@@ -216,11 +231,12 @@ grpc::ServerUnaryReactor* RecognizerService::ReloadModels(grpc::CallbackServerCo
           out->set_name(failure.name);
           out->set_path(failure.path);
           out->set_message(failure.message);
-          spdlog::warn("[{}] reload of {} failed: {}", request_id, failure.path, failure.message);
+          spdlog::warn("[{}] reload of {} failed: {}", loggable(request_id), loggable(failure.path),
+                       loggable(failure.message, kMaxStatusMessage));
         }
         for (const auto& model : context_.models.list()) *response->add_models() = model->info;
         modelsChanged();
-        spdlog::info("[{}] reloaded: {} models, {} failures", request_id, response->models_size(),
+        spdlog::info("[{}] reloaded: {} models, {} failures", loggable(request_id), response->models_size(),
                      response->failures_size());
       });
 }

@@ -30,6 +30,7 @@ Server::Server(const ServerOptions& options)
     : options_(options),
       models_(options.model_dir, options.max_model_mb << 20),
       metrics_(options.metrics_listen),
+      admission_(options.max_queued_mb << 20, &health_),
       pool_(options.threads, options.threads_per_request),
       access_(accessParams(options)) {
   models_.loadDirectory();
@@ -41,7 +42,8 @@ Server::Server(const ServerOptions& options)
   metrics_.setLoadedModels(models_.size());
   health_.setModels(models_.size());
   warnAboutExposure();
-  service_ = std::make_unique<RecognizerService>(ServiceContext{models_, pool_, admin_pool_, metrics_, health_, options.limits}, access_);
+  service_ = std::make_unique<RecognizerService>(
+      ServiceContext{models_, pool_, admin_pool_, metrics_, health_, admission_, options.limits}, access_);
 
   const auto credentials = options.tls_cert.empty()
                                ? grpc::InsecureServerCredentials()
@@ -74,6 +76,13 @@ void Server::warnAboutExposure() const {
       spdlog::warn("{} is reachable from other machines without --token-file: anyone may call every RPC",
                    options_.listen);
     }
+  }
+  // /metrics is plain HTTP without tokens whatever the gRPC side uses.
+  if (!options_.metrics_listen.empty() && !isLoopbackAddress(options_.metrics_listen)) {
+    spdlog::warn("/metrics on {} is reachable from other machines, in plain HTTP without tokens{}: give "
+                 "--metrics-listen 127.0.0.1:9464, or keep the port behind a firewall",
+                 options_.metrics_listen,
+                 options_.tls_cert.empty() && !access_.authEnabled() ? "" : " (unlike the gRPC port)");
   }
   if (access_.authEnabled() && options_.admin_token_file.empty()) {
     spdlog::info("no --admin-token-file: LoadModel, UnloadModel and ReloadModels are refused");

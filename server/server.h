@@ -5,6 +5,7 @@
 
 #include <memory>
 
+#include "server/admission.h"
 #include "server/auth.h"
 #include "server/health.h"
 #include "server/metrics.h"
@@ -36,6 +37,7 @@ class Server {
   ModelRegistry models_;
   Metrics metrics_;
   Health health_;
+  Admission admission_;
   WorkerPool pool_;
   WorkerPool admin_pool_{1, 1};
   AccessControl access_;

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "core/recognition/recognizer.h"
+#include "server/untrusted_text.h"
 
 namespace ism::server {
 
@@ -22,23 +23,26 @@ void ServiceContext::recognize(const std::string& request_id, const v1::Scene& s
     ~Recycle() { buffers.recycle(scene); }
   } recycle{decoded};
   RecognitionOptions core_options;
+  size_t out_of_range = 0;
   {
     ScopedStage stage(&decode_timing, "decode");
     core_options = optionsFromProto(options, model->model);
-    decoded = sceneFromProto(scene, limits, &buffers);
+    decoded = sceneFromProto(scene, limits, &buffers, should_stop);
+    out_of_range = dropPointsBeyondRange(&decoded, limits.max_range_m);
   }
   core_options.should_stop = should_stop;
   RecognitionResult result = ism::recognize(model->model, decoded, core_options);
   result.timings.stages.insert(result.timings.stages.begin(), decode_timing.stages.front());
   metrics.recordStages(result.timings);
   resultToProto(result, *model, out);
+  out->set_out_of_range_points(out_of_range);
 
   std::string stages;
   for (const auto& [name, ms] : result.timings.stages) stages += fmt::format(" {}={:.1f}ms", name, ms);
-  spdlog::info("[{}] model={}@{} preset={} up={} points={} keypoints={} hypotheses={} total={:.1f}ms{}", request_id,
-               model->name, model->info.version(), toString(core_options.preset),
-               result.gravity ? toString(result.gravity->source) : "none", result.input_points, result.keypoints,
-               result.hypotheses.size(), result.timings.total(), stages);
+  spdlog::info("[{}] model={}@{} preset={} up={} points={} out_of_range={} keypoints={} hypotheses={} total={:.1f}ms{}",
+               loggable(request_id), model->name, model->info.version(), toString(core_options.preset),
+               result.gravity ? toString(result.gravity->source) : "none", result.input_points, out_of_range,
+               result.keypoints, result.hypotheses.size(), result.timings.total(), stages);
 }
 
 ShouldStop ServiceContext::stopper(grpc::CallbackServerContext* context, const std::atomic<bool>* also) const {

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "core/common/types.h"
+#include "server/admission.h"
 #include "server/conversion.h"
 #include "server/health.h"
 #include "server/metrics.h"
@@ -22,6 +23,7 @@ struct ServiceContext {
   WorkerPool& admin_pool;  // LoadModel, UnloadModel, ReloadModels
   Metrics& metrics;
   Health& health;
+  Admission& admission;  // recognitions: unary requests and stream frames
   InputLimits limits;
   // Set once the drain time is over: the work still running is given up (may be null).
   const std::atomic<bool>* abandoned = nullptr;

@@ -4,6 +4,8 @@
 
 #include <new>
 
+#include "server/untrusted_text.h"
+
 namespace ism::server {
 
 grpc::StatusCode toStatusCode(ErrorCode code) {
@@ -36,11 +38,11 @@ grpc::Status statusFromCurrentException() {
   try {
     throw;
   } catch (const Error& e) {
-    return {toStatusCode(e.code()), e.what()};
+    return {toStatusCode(e.code()), capped(e.what())};
   } catch (const std::bad_alloc&) {
     return {grpc::StatusCode::RESOURCE_EXHAUSTED, "out of memory while processing the request"};
   } catch (const std::exception& e) {
-    return {grpc::StatusCode::INTERNAL, std::string("internal error: ") + e.what()};
+    return {grpc::StatusCode::INTERNAL, capped(std::string("internal error: ") + e.what())};
   } catch (...) {
     return {grpc::StatusCode::INTERNAL, "internal error: unknown exception"};
   }

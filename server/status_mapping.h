@@ -15,7 +15,8 @@ grpc::StatusCode toStatusCode(ErrorCode code);
 // "NOT_FOUND", "DEADLINE_EXCEEDED"...: for logs and metric labels.
 std::string statusCodeName(grpc::StatusCode code);
 
-// Call inside a catch block: converts the exception in flight.
+// Call inside a catch block: converts the exception in flight. The message is capped
+// (untrusted_text.h): it may quote what a client sent.
 grpc::Status statusFromCurrentException();
 
 }  // namespace ism::server

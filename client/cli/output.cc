@@ -56,8 +56,10 @@ std::string toJson(const google::protobuf::Message& message) {
 
 void printResult(std::ostream& out, const std::string& title, const v1::RecognitionResult& result) {
   out << title << ": " << result.hypotheses_size() << " hypotheses (model " << result.model_name() << "@"
-      << result.model_version() << ", " << result.input_points() << " points, " << result.keypoints()
-      << " keypoints, " << std::fixed << std::setprecision(1) << result.total_ms() << " ms)\n";
+      << result.model_version() << ", " << result.input_points() << " points, ";
+  // Said only when it happened: dropped points usually mean a bad conversion upstream.
+  if (result.out_of_range_points() > 0) out << result.out_of_range_points() << " out of sensor range dropped, ";
+  out << result.keypoints() << " keypoints, " << std::fixed << std::setprecision(1) << result.total_ms() << " ms)\n";
   const RecognitionResult core = wire::resultFromProto(result);
   // The selection column only matters when the caller asked for boxes that fail the test.
   const bool any_failed = std::any_of(core.hypotheses.begin(), core.hypotheses.end(),

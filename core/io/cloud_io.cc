@@ -329,8 +329,9 @@ Scene depthToScene(const uint16_t* depth, int width, int height, const DepthIntr
   });
 }
 
-Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrinsics, const std::string& source) {
-  const DepthPng image = decodeDepthPng16(png_bytes, source);
+Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrinsics, const std::string& source,
+                     const ShouldStop& should_stop) {
+  const DepthPng image = decodeDepthPng16(png_bytes, source, should_stop);
   return depthToScene(image.pixels.data(), image.width, image.height, intrinsics, source);
 }
 

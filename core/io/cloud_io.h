@@ -24,8 +24,9 @@ Scene depthToScene(const uint16_t* depth, int width, int height, const DepthIntr
 
 // A 16-bit single-channel PNG (file or bytes in memory) -> scene, as depthToScene.
 Scene loadDepthPng(const std::string& path, const DepthIntrinsics& intrinsics);
+// `should_stop` as decodeDepthPng16 uses it: long decodes end when the caller gives up.
 Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrinsics,
-                     const std::string& source = "depth PNG");
+                     const std::string& source = "depth PNG", const ShouldStop& should_stop = {});
 
 // Packed float32 xyz (and optional packed uint8 rgb) as sent over the wire. width*height must
 // equal the point count when organized (height > 1), else pass width = count, height = 1. `xyz`

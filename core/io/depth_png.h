@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "core/common/types.h"
+
 namespace ism {
 
 struct DepthPng {
@@ -14,8 +16,11 @@ struct DepthPng {
 };
 
 // Throws Error(kInvalidInput) naming `source` when the bytes are not a PNG, or not a
-// single-channel 16-bit one (the message says what it is instead).
-DepthPng decodeDepthPng16(const std::string& bytes, const std::string& source);
+// single-channel 16-bit one (the message says what it is instead), or when its image data
+// inflates to more than its header's size holds (a decompression bomb is refused after that
+// many bytes, not inflated to the end). `should_stop` is asked between rows and every few MB
+// inflated: true throws Error(kCancelled).
+DepthPng decodeDepthPng16(const std::string& bytes, const std::string& source, const ShouldStop& should_stop = {});
 std::string encodeDepthPng16(const DepthPng& image);
 
 }  // namespace ism

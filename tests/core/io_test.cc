@@ -12,6 +12,7 @@
 #include "core/io/depth_png.h"
 #include "core/io/file_bytes.h"
 #include "tests/common/expect_error.h"
+#include "tests/common/png_bomb.h"
 
 namespace ism {
 namespace {
@@ -292,6 +293,65 @@ TEST_F(IoTest, TruncatedOrCorruptPngIsRejected) {
   std::string flipped = bytes;
   flipped[bytes.size() / 2] = static_cast<char>(flipped[bytes.size() / 2] ^ 0x5A);
   expectError([&] { decodeDepthPng16(flipped, "flipped.png"); }, ErrorCode::kInvalidInput, "flipped.png: broken PNG");
+}
+
+void appendToString(png_structp png, png_bytep data, png_size_t length) {
+  static_cast<std::string*>(png_get_io_ptr(png))->append(reinterpret_cast<const char*>(data), length);
+}
+
+// encodeDepthPng16 never interlaces; other encoders may.
+std::string encodeInterlaced(const DepthPng& image) {
+  std::string out;
+  png_structp png = png_create_write_struct(PNG_LIBPNG_VER_STRING, nullptr, nullptr, nullptr);
+  png_infop info = png_create_info_struct(png);
+  png_set_write_fn(png, &out, appendToString, nullptr);
+  png_set_IHDR(png, info, image.width, image.height, 16, PNG_COLOR_TYPE_GRAY, PNG_INTERLACE_ADAM7,
+               PNG_COMPRESSION_TYPE_DEFAULT, PNG_FILTER_TYPE_DEFAULT);
+  png_write_info(png, info);
+  png_set_swap(png);
+  std::vector<png_bytep> rows;
+  for (int r = 0; r < image.height; ++r) {
+    rows.push_back(reinterpret_cast<png_bytep>(const_cast<uint16_t*>(image.pixels.data() + r * image.width)));
+  }
+  png_write_image(png, rows.data());
+  png_write_end(png, nullptr);
+  png_destroy_write_struct(&png, &info);
+  return out;
+}
+
+TEST_F(IoTest, InterlacedDepthPngsDecode) {
+  for (const auto& [width, height] : std::vector<std::pair<int, int>>{{1, 1}, {13, 7}, {3, 10}, {64, 48}}) {
+    DepthPng image;
+    image.width = width;
+    image.height = height;
+    for (int i = 0; i < width * height; ++i) image.pixels.push_back(static_cast<uint16_t>(i * 977 + 1));
+    const DepthPng decoded = decodeDepthPng16(encodeInterlaced(image), "interlaced.png");
+    EXPECT_EQ(decoded.pixels, image.pixels) << width << "x" << height;
+  }
+}
+
+// A 1x1 image whose data inflates to 64 MB: refused once it passes the 3 bytes (a filter byte
+// and one pixel) the header allows, not inflated to its end.
+TEST_F(IoTest, ADecompressionBombIsRefusedAtTheSizeItsHeaderAllows) {
+  const std::string bomb = ism::testing::depthPngBomb(64);
+  ASSERT_LT(bomb.size(), 100u * 1024);
+  int asked = 0;
+  expectError([&] { decodeDepthPng16(bomb, "bomb.png", [&] { return ++asked < 0; }); }, ErrorCode::kInvalidInput,
+              "bomb.png: the PNG's image data inflates to more than the 3 bytes a 1x1 16-bit image holds");
+  EXPECT_EQ(asked, 0);  // stopped long before a check for the deadline was due
+}
+
+TEST_F(IoTest, DecodingStopsWhenTheCallerGivesUp) {
+  DepthPng image;
+  image.width = 64;
+  image.height = 64;
+  image.pixels.assign(64 * 64, 1234);
+  const std::string bytes = encodeDepthPng16(image);
+  int rows = 0;
+  expectError([&] { decodeDepthPng16(bytes, "frame.png", [&] { return ++rows == 10; }); }, ErrorCode::kCancelled,
+              "stopped during PNG decoding");
+  EXPECT_EQ(rows, 10);
+  EXPECT_EQ(decodeDepthPng16(bytes, "frame.png", [] { return false; }).pixels, image.pixels);
 }
 
 TEST_F(IoTest, EncodeRejectsInconsistentImage) {

@@ -23,6 +23,7 @@
 
 #include "core/io/file_bytes.h"
 #include "grpc/health/v1/health.grpc.pb.h"
+#include "tests/common/png_bomb.h"
 #include "tests/service/service_fixture.h"
 
 namespace ism::testing {
@@ -391,12 +392,15 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
               s->mutable_cloud()->set_xyz(packed(xyz));
             }),
        invalid, "none of its 100 points is finite"},
-      {"finite coordinates near the float limit",
+      // Among points in range such points are dropped (PointsBeyondTheSensorRangeAreDroppedAndCounted).
+      {"only finite coordinates near the float limit",
        with(cloud,
             [](auto* s) {
-              *s->mutable_cloud()->mutable_xyz() += packed({1e30f, 1e30f, 1e30f, -3e38f, 0, 3e38f});
+              s->mutable_cloud()->clear_width();
+              s->mutable_cloud()->clear_height();
+              s->mutable_cloud()->set_xyz(packed({1e30f, 1e30f, 1e30f, -3e38f, 0, 3e38f}));
             }),
-       invalid, "too small for coordinates up to"},
+       invalid, "scene: all 2 points are farther than 100 m from scene.sensor_origin"},
       {"NaN sensor origin", with(cloud, [=](auto* s) { s->mutable_sensor_origin()->set_y(nan); }), invalid,
        "scene.sensor_origin / sensor_orientation contain NaN or Inf"},
       {"Inf sensor orientation", with(raw, [=](auto* s) { s->mutable_sensor_orientation()->set_w(inf); }), invalid,
@@ -423,6 +427,16 @@ std::vector<SceneCase> badScenes(const v1::Scene& raw, const v1::Scene& png, con
       {"PNG header announcing 100000 x 100000",
        with(png, [](auto* s) { s->mutable_depth()->set_data(ism::testing::png(100000, 100000, 16, 0, "")); }),
        exhausted, "scene.depth PNG pixels has 10000000000, more than the server's limit of 100000"},
+      // 1x1 whose data inflates to 512 MB (~0.5 MB on the wire): refused after 3 bytes, not after a
+      // worker spent seconds inflating it.
+      {"PNG decompression bomb",
+       with(png,
+            [](auto* s) {
+              s->mutable_depth()->clear_width();
+              s->mutable_depth()->clear_height();
+              s->mutable_depth()->set_data(ism::testing::depthPngBomb(512));
+            }),
+       invalid, "request PNG: the PNG's image data inflates to more than the 3 bytes a 1x1 16-bit image holds"},
       // Options.
       {"negative k", options([](auto* o) {
          o->mutable_strategy()->set_activation(v1::ACTIVATION_STRATEGY_KNN);
@@ -490,6 +504,46 @@ TEST_F(BadInputTest, NonFinitePointsAmongFiniteOnesAreDropped) {
   ASSERT_TRUE(status.ok()) << status.error_message();
   EXPECT_EQ(response.result().input_points(), finite);
   EXPECT_GT(response.result().keypoints(), 0u);
+}
+
+// A stray point far beyond any sensor's range (1e30 here) used to fail the frame in the voxel
+// grid: such points are dropped and counted, and the frame is recognised from the rest.
+TEST_F(BadInputTest, PointsBeyondTheSensorRangeAreDroppedAndCounted) {
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = *cloud_;
+  std::string* xyz = request.mutable_scene()->mutable_cloud()->mutable_xyz();
+  const size_t in_range = xyz->size() / 12;
+  std::vector<float> stray;
+  for (int i = 0; i < 1000; ++i) stray.insert(stray.end(), {1e30f, (i % 2 ? -1 : 1) * 1e30f, 1.0f});
+  stray.insert(stray.end(), {150.0f, 0.0f, 0.0f});  // beyond the default 100 m
+  *xyz += packed(stray);
+  v1::RecognizeResponse response;
+  const grpc::Status status = recognize(request, &response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+  EXPECT_EQ(response.result().input_points(), in_range);
+  EXPECT_EQ(response.result().out_of_range_points(), 1001u);
+  EXPECT_GT(response.result().keypoints(), 0u);
+}
+
+// A scene in the wrong units (here millimetres ten times over) has nothing within range: it is
+// refused with what to check, not with a voxel count.
+TEST_F(BadInputTest, ASceneInTheWrongUnitsIsRefusedSayingSo) {
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = *cloud_;
+  std::string* xyz = request.mutable_scene()->mutable_cloud()->mutable_xyz();
+  for (size_t at = 0; at < xyz->size(); at += 4) {
+    float v;
+    std::memcpy(&v, xyz->data() + at, 4);
+    v *= 1e4f;
+    std::memcpy(xyz->data() + at, &v, 4);
+  }
+  auto* origin = request.mutable_scene()->mutable_sensor_origin();
+  origin->set_x(origin->x() * 1e4f);
+  origin->set_y(origin->y() * 1e4f);
+  origin->set_z(origin->z() * 1e4f);
+  v1::RecognizeResponse response;
+  EXPECT_TRUE(hasStatus(recognize(request, &response), grpc::StatusCode::INVALID_ARGUMENT,
+                        " points are farther than 100 m from scene.sensor_origin (the nearest at "));
 }
 
 // A frame fails alone with the same status as the request would, and the stream goes on.
@@ -632,14 +686,15 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
   fs::create_directories(dir);
   const std::string model = readFileBytes(tinyModelDirectory() + "/default.ismm");
   writeFileBytes((dir / "default.ismm").string(), model);
-  // A limit just above the test model (~1 MB since models carry calibration and training objects).
-  ServerProcess server({"--models", dir.string(), "--max-model-mb", "2"});
+  // The smallest limit in MB the test model fits under (its size follows what training stores).
+  const size_t limit_mb = model.size() / (1 << 20) + 1;
+  ServerProcess server({"--models", dir.string(), "--max-model-mb", std::to_string(limit_mb)});
   fs::create_directories(dir / "a_directory.ismm");
   writeFileBytes((dir / "truncated.ismm").string(), model.substr(0, model.size() / 2));
   writeFileBytes((dir / "garbage.ismm").string(), std::string("\x00\x01\x02 this is no model", 21));
   writeFileBytes((dir / "empty.ismm").string(), "");
   writeFileBytes((dir / "secret.ismm").string(), "SECRET-API-KEY-0123456789abcdef!");
-  writeFileBytes((dir / "large.ismm").string(), std::string((2 << 20) + 1, 'x'));
+  writeFileBytes((dir / "large.ismm").string(), std::string((limit_mb << 20) + 1, 'x'));
   std::string damaged = model;
   damaged[damaged.size() / 2] ^= 0x5a;
   writeFileBytes((dir / "damaged.ismm").string(), damaged);
@@ -668,7 +723,8 @@ TEST_F(BadInputTest, ModelAdministrationRequestsThatCannotBeServed) {
       {"other", path("damaged.ismm"), failed,
        path("damaged.ismm") + ": CRC-32 mismatch (the file is truncated or damaged)"},
       {"other", path("large.ismm"), grpc::StatusCode::RESOURCE_EXHAUSTED,
-       path("large.ismm") + ": larger than the 2097152 bytes a model file may have here"},
+       path("large.ismm") + ": larger than the " + std::to_string(limit_mb << 20) +
+           " bytes a model file may have here"},
       // Not regular files: refused before a byte is read (a FIFO would block, /dev/zero never end).
       {"other", path("a_directory.ismm"), not_found, path("a_directory.ismm") + unreadable},
       {"other", path("fifo.ismm"), not_found, path("fifo.ismm") + unreadable},

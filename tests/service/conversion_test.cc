@@ -92,6 +92,39 @@ void expectSameScene(const Scene& actual, const Scene& expected) {
   EXPECT_TRUE(actual.sensor_orientation.coeffs().isApprox(Eigen::Quaternionf::Identity().coeffs()));
 }
 
+TEST(Conversion, PointsBeyondTheRangeAreDroppedWithTheirPixels) {
+  WireCloud wire;
+  wire.xyz = {0, 0, 1, 0, 0, 300, 1, 0, 1, kNaN, 0, 0, 0, 1e30f, 0, 2, 2, 2};
+  wire.width = 3;
+  wire.height = 2;
+  v1::Scene message = wire.message();
+  message.mutable_sensor_origin()->set_z(0.5f);
+  Scene scene = sceneFromProto(message, InputLimits{});
+  EXPECT_EQ(server::dropPointsBeyondRange(&scene, 100.0f), 2u);
+  ASSERT_EQ(scene.cloud->size(), 3u);
+  EXPECT_EQ(scene.cloud->width, 3u);
+  EXPECT_EQ(scene.pixel_index, (std::vector<int>{0, 2, 5}));
+  EXPECT_EQ(scene.cloud->at(2).getVector3fMap(), Eigen::Vector3f(2, 2, 2));
+
+  // The range counts from the sensor origin, not from (0, 0, 0).
+  message.mutable_sensor_origin()->set_z(1000.0f);
+  Scene far = sceneFromProto(message, InputLimits{});
+  EXPECT_EQ(server::dropPointsBeyondRange(&far, 800.0f), 4u);
+  EXPECT_EQ(far.pixel_index, (std::vector<int>{1}));
+
+  Scene none = sceneFromProto(message, InputLimits{});
+  try {
+    server::dropPointsBeyondRange(&none, 10.0f);
+    ADD_FAILURE() << "no error";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidInput);
+    EXPECT_NE(std::string(e.what()).find("all 5 points are farther than 10 m from scene.sensor_origin (the nearest "
+                                         "at 700 m)"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Conversion, CloudDecodesAsCoreDoes) {
   const InputLimits limits;
   for (const WireCloud& cloud : {randomCloud(64, 48, 0, true, 1), randomCloud(64, 48, 0, false, 2),

@@ -1,6 +1,7 @@
 #include "tests/service/service_fixture.h"
 
 #include <arpa/inet.h>
+#include <fcntl.h>
 #include <netinet/in.h>
 #include <signal.h>
 #include <spawn.h>
@@ -29,8 +30,6 @@ extern char** environ;
 namespace ism::testing {
 namespace fs = std::filesystem;
 
-namespace {
-
 int freePort() {
   const int fd = socket(AF_INET, SOCK_STREAM, 0);
   sockaddr_in address{};
@@ -42,6 +41,8 @@ int freePort() {
   close(fd);
   return ntohs(address.sin_port);
 }
+
+namespace {
 
 void writeObj(const Mesh& mesh, const fs::path& path) {
   std::ofstream out(path);
@@ -121,31 +122,39 @@ std::string tinyModelDirectory() {
 }
 
 ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags,
-                             std::shared_ptr<grpc::ChannelCredentials> credentials, int port)
+                             std::shared_ptr<grpc::ChannelCredentials> credentials, int port,
+                             const std::string& log_file)
     : credentials_(credentials ? std::move(credentials) : grpc::InsecureChannelCredentials()) {
   const std::string models = tinyModelDirectory();
   port_ = port > 0 ? port : freePort();
-  metrics_port_ = freePort();
-  std::vector<std::string> args{ISM_SERVER_BINARY,
-                                "--listen",
-                                address(),
-                                "--metrics-listen",
-                                "127.0.0.1:" + std::to_string(metrics_port_),
-                                "--threads",
-                                "2",
-                                "--log-level",
-                                "warn"};
-  // A test may serve models of its own (the flag may be given once).
-  if (std::find(extra_flags.begin(), extra_flags.end(), "--models") == extra_flags.end()) {
-    args.insert(args.end(), {"--models", models});
+  // The fixture's defaults, for the flags a test does not give itself (each may be given once).
+  const auto given = [&](const std::string& flag) {
+    return std::find(extra_flags.begin(), extra_flags.end(), flag) != extra_flags.end();
+  };
+  std::vector<std::string> args{ISM_SERVER_BINARY, "--listen", address()};
+  if (!given("--threads")) args.insert(args.end(), {"--threads", "2"});
+  if (!given("--log-level")) args.insert(args.end(), {"--log-level", "warn"});
+  if (!given("--models")) args.insert(args.end(), {"--models", models});
+  const auto metrics_flag = std::find(extra_flags.begin(), extra_flags.end(), "--metrics-listen");
+  if (metrics_flag == extra_flags.end()) {
+    metrics_port_ = freePort();
+    args.insert(args.end(), {"--metrics-listen", "127.0.0.1:" + std::to_string(metrics_port_)});
+  } else if (metrics_flag + 1 != extra_flags.end()) {  // metrics() reads the port the test chose
+    const std::string& listen = *(metrics_flag + 1);
+    metrics_port_ = listen.empty() ? 0 : std::atoi(listen.substr(listen.rfind(':') + 1).c_str());
   }
   args.insert(args.end(), extra_flags.begin(), extra_flags.end());
   std::vector<char*> argv;
   for (auto& a : args) argv.push_back(a.data());
   argv.push_back(nullptr);
-  if (posix_spawn(&pid_, ISM_SERVER_BINARY, nullptr, nullptr, argv.data(), environ) != 0) {
-    throw std::runtime_error(std::string("cannot start ") + ISM_SERVER_BINARY);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  if (!log_file.empty()) {
+    posix_spawn_file_actions_addopen(&actions, STDERR_FILENO, log_file.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0600);
   }
+  const int spawned = posix_spawn(&pid_, ISM_SERVER_BINARY, &actions, nullptr, argv.data(), environ);
+  posix_spawn_file_actions_destroy(&actions);
+  if (spawned != 0) throw std::runtime_error(std::string("cannot start ") + ISM_SERVER_BINARY);
   const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(30);
   while (std::chrono::steady_clock::now() < give_up) {
     // A fresh channel per attempt: one that first tried before the server listened keeps

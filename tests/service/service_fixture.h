@@ -14,6 +14,9 @@
 
 namespace ism::testing {
 
+// A TCP port on 127.0.0.1 that nothing listens on right now.
+int freePort();
+
 // Trains (first call in the build tree) or reuses a two-category model; returns the directory
 // holding it as default.ismm. Cached because every test process starts its own server.
 std::string tinyModelDirectory();
@@ -24,9 +27,11 @@ class ServerProcess {
   // Extra flags are appended (e.g. "--max-points", "5000"; "--models" replaces the tiny model's).
   // Waits for health SERVING, asked over `credentials` (plain text when null; TLS servers need
   // SslCredentials). `port` 0 picks a free one; a restarted server takes its predecessor's so
-  // that clients find it again.
+  // that clients find it again. With `log_file`, the server's log (its stderr) goes there
+  // instead of the test's output, for tests that read it.
   explicit ServerProcess(const std::vector<std::string>& extra_flags = {},
-                         std::shared_ptr<grpc::ChannelCredentials> credentials = nullptr, int port = 0);
+                         std::shared_ptr<grpc::ChannelCredentials> credentials = nullptr, int port = 0,
+                         const std::string& log_file = "");
   ~ServerProcess();
   ServerProcess(const ServerProcess&) = delete;
   ServerProcess& operator=(const ServerProcess&) = delete;
