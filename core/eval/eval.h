@@ -1,5 +1,5 @@
 #pragma once
-// Evaluation as in the seed (../shared/docs/ALGORITHM.md, "Evaluation protocol of the seed"):
+// Evaluation as in the seed (the 2012 thesis's evaluation protocol):
 // (a) the baseline on synthetic scans: "hypothesis generated" tables and confusion matrices
 //     for each codebook x activation x weighting combination the seed compared;
 // (b) real scenes with hand-marked centres: TP/FP/FN, the seed's recognition rate
@@ -98,7 +98,7 @@ BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingSc
 BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params, const EvalRecognition& recognition = {});
 
 // ---------------------------------------------------------------------------------------------
-// (b) Real scenes with ground truth (../shared/docs/DATASETS.md format)
+// (b) Real scenes with ground truth (JSON: scene, cloud, objects with category, centre, size, yaw)
 
 struct AnnotatedScene {
   std::string name;

@@ -26,8 +26,8 @@ int main(int argc, char** argv) {
   std::string preset = presetOf(argc, argv);
   ism::TrainingParams params = preset == "seed" ? ism::seedTrainingParams() : ism::TrainingParams{};
   app.add_option("--preset", preset,
-                 "default: the project's pipeline (gravity, upright votes, floors in the scans); seed: the thesis' "
-                 "pipeline as ../shared/docs/ALGORITHM.md describes it")
+                 "default: the project's pipeline (gravity, upright votes, floors in the scans); seed: the 2012 "
+                 "thesis's pipeline")
       ->check(CLI::IsMember({"default", "seed"}))
       ->capture_default_str();
   std::vector<std::string> bins;

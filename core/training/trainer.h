@@ -58,7 +58,7 @@ struct TrainingParams {
   std::string command;  // recorded in provenance
 };
 
-// Training as the seed describes it (../shared/docs/ALGORITHM.md): no gravity stage, votes in
+// Training as the seed (the 2012 thesis) describes it: no gravity stage, votes in
 // the SHOT LRF, meshes rendered alone. The defaults of TrainingParams are the project's own.
 TrainingParams seedTrainingParams();
 
