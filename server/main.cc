@@ -1,5 +1,6 @@
 // ism-server: the furniture recognition gRPC service. Parse the options, run, and on SIGTERM or
 // SIGINT drain: stop taking calls, let the running ones finish (up to --drain-seconds), exit 0.
+#include <grpcpp/ext/proto_server_reflection_plugin.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -47,6 +48,9 @@ int main(int argc, char** argv) {
   if (!options) return exit_code;
   setUpLogging(options->log_level);
 
+  // Reflection is the binary's, not the server library's: tests link the library with their own
+  // reflection stubs, and two copies of reflection.proto's descriptors abort at start-up.
+  grpc::reflection::InitProtoReflectionServerBuilderPlugin();
   std::unique_ptr<ism::server::Server> server;
   try {
     server = std::make_unique<ism::server::Server>(*options);

@@ -1,7 +1,7 @@
 """Static checks of deploy/: every YAML file parses, the Kubernetes objects fit together (names,
 selectors, probes, ports), the server runs non-root on a read-only root filesystem in compose and
 Kubernetes alike, and every ISM_* variable the deployment sets is one that ism-server
-actually reads (its envname() declarations in server/main.cc), so a renamed flag cannot leave
+actually reads (its envname() declarations in server/options.cc), so a renamed flag cannot leave
 a ConfigMap silently ignored."""
 import glob
 import os
@@ -20,9 +20,9 @@ def load_all(path):
 
 
 def server_env_vars():
-    with open(os.path.join(SOURCE, "server", "main.cc")) as f:
+    with open(os.path.join(SOURCE, "server", "options.cc")) as f:
         names = set(re.findall(r'envname\("(ISM_[A-Z0-9_]+)"\)', f.read()))
-    assert names, "server/main.cc declares no envname(): the parsing here is out of date"
+    assert names, "server/options.cc declares no envname(): the parsing here is out of date"
     return names
 
 

@@ -1,5 +1,6 @@
 // What the service answers under each preset, and the up it answers in: the real ism-server on
 // 127.0.0.1 against core run in this process on the same points.
+#include <limits>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -40,7 +41,7 @@ class AnswersTest : public ::testing::Test {
   static Scene localScene(const SyntheticScene& scene, const v1::Scene& message) {
     const std::string& xyz = message.cloud().xyz();
     Scene local = sceneFromPacked(reinterpret_cast<const float*>(xyz.data()), xyz.size() / 12, nullptr,
-                                  static_cast<int>(xyz.size() / 12), 1);
+                                  static_cast<int>(message.cloud().width()), static_cast<int>(message.cloud().height()));
     local.sensor_origin = scene.scene.sensor_origin;
     local.up = wire::upFromProto(message);
     return local;
@@ -60,9 +61,22 @@ ServerProcess* AnswersTest::server_ = nullptr;
 SyntheticScene confidentScene() { return smallScene(0, 320, 240); }
 
 // The small scene is a world-frame cloud (z up) sent without a sensor orientation: only a given
-// up tells the server where its floor is.
+// up tells the server where its floor is. It goes as its whole pixel grid (NaN where the render
+// has no point), as a sensor's organized cloud would: the same keypoints as the training's scans.
 v1::Scene zUpCloud(const SyntheticScene& scene) {
-  v1::Scene message = cloudMessage(scene.scene);
+  const Scene& points = scene.scene;
+  v1::Scene message;
+  const size_t pixels = static_cast<size_t>(points.image_width) * static_cast<size_t>(points.image_height);
+  std::vector<float> grid(pixels * 3, std::numeric_limits<float>::quiet_NaN());
+  for (size_t i = 0; i < points.cloud->size(); ++i) {
+    const auto& p = (*points.cloud)[i];
+    const size_t pixel = static_cast<size_t>(points.pixel_index[i]);
+    grid[pixel * 3] = p.x, grid[pixel * 3 + 1] = p.y, grid[pixel * 3 + 2] = p.z;
+  }
+  message.mutable_cloud()->set_xyz(std::string(reinterpret_cast<const char*>(grid.data()), grid.size() * sizeof(float)));
+  message.mutable_cloud()->set_width(static_cast<uint32_t>(points.image_width));
+  message.mutable_cloud()->set_height(static_cast<uint32_t>(points.image_height));
+  wire::toProto(points.sensor_origin, message.mutable_sensor_origin());
   wire::toProto(Eigen::Vector3f::UnitZ(), message.mutable_up());
   return message;
 }
