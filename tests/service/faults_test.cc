@@ -243,15 +243,22 @@ TEST(Faults, PastTheDrainTimeTheRunningWorkIsStoppedAndAnswered) {
   depth->set_data(readFileBytes(ISM_SOURCE_DIR "/models/sample/living_room_depth.png"));
   *depth->mutable_intrinsics() = wire::intrinsicsToProto(DepthIntrinsics{});  // the virtual Kinect's
   request.mutable_options()->mutable_strategy()->set_k(static_cast<int32_t>(model.global_codebook_size()));
+  // The GetModel call stays open until gRPC is done with it, a moment after its answer arrived:
+  // only once it is closed does one open call mean that the Recognize call has been taken.
+  const auto waitForOpenCalls = [&](const std::string& line) {
+    for (int attempt = 0; attempt < 600 && server.metrics().find(line) == std::string::npos; ++attempt) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    ASSERT_NE(server.metrics().find(line), std::string::npos) << "no '" << line << "' in the metrics";
+  };
+  waitForOpenCalls("ism_open_calls 0");
   auto running = std::async(std::launch::async, [&] {
     grpc::ClientContext context;
     context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(300));
     v1::RecognizeResponse response;
     return stub->Recognize(&context, request, &response);
   });
-  for (int attempt = 0; attempt < 600 && server.metrics().find("ism_open_calls 1") == std::string::npos; ++attempt) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  waitForOpenCalls("ism_open_calls 1");
   const auto signalled = Clock::now();
   EXPECT_EQ(server.terminate(std::chrono::seconds(120)), 0);
   const grpc::Status status = running.get();
