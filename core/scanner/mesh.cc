@@ -8,7 +8,9 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <sstream>
+#include <unordered_map>
 
 #include "core/common/error.h"
 
@@ -400,6 +402,52 @@ Mesh transformed(const Mesh& mesh, const Eigen::Isometry3f& pose) {
   Mesh out = mesh;
   for (auto& v : out.vertices) v = pose * v;
   return out;
+}
+
+std::vector<Eigen::Vector3f> sampleSurface(const Mesh& mesh, float spacing, size_t max_points, uint32_t seed) {
+  if (!(spacing > 0)) throw Error(ErrorCode::kInvalidInput, "sampleSurface: spacing must be > 0");
+  std::vector<double> cumulative;  // triangle areas, summed
+  cumulative.reserve(mesh.triangles.size());
+  double total = 0;
+  for (const auto& t : mesh.triangles) {
+    const Eigen::Vector3f& a = mesh.vertices[static_cast<size_t>(t.x())];
+    total += 0.5 * static_cast<double>((mesh.vertices[static_cast<size_t>(t.y())] - a)
+                                           .cross(mesh.vertices[static_cast<size_t>(t.z())] - a)
+                                           .norm());
+    cumulative.push_back(total);
+  }
+  if (!(total > 0)) return {};
+  // Four candidates per cube on average over the area, so that thinning leaves few holes.
+  const auto candidates = static_cast<size_t>(std::min(4.0 * total / (spacing * spacing), 4e6));
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> area(0.0, total);
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  std::unordered_map<uint64_t, Eigen::Vector3f> cells;
+  for (size_t i = 0; i < candidates; ++i) {
+    const size_t k = static_cast<size_t>(std::lower_bound(cumulative.begin(), cumulative.end(), area(rng)) - cumulative.begin());
+    const Eigen::Vector3i& t = mesh.triangles[std::min(k, mesh.triangles.size() - 1)];
+    float r1 = unit(rng), r2 = unit(rng);
+    if (r1 + r2 > 1) {
+      r1 = 1 - r1;
+      r2 = 1 - r2;
+    }
+    const Eigen::Vector3f& a = mesh.vertices[static_cast<size_t>(t.x())];
+    const Eigen::Vector3f p = a + r1 * (mesh.vertices[static_cast<size_t>(t.y())] - a) +
+                              r2 * (mesh.vertices[static_cast<size_t>(t.z())] - a);
+    const Eigen::Vector3i cell = (p / spacing).array().floor().cast<int>();
+    const uint64_t key = (static_cast<uint64_t>(static_cast<uint32_t>(cell.x()) & 0x1fffff) << 42) |
+                         (static_cast<uint64_t>(static_cast<uint32_t>(cell.y()) & 0x1fffff) << 21) |
+                         (static_cast<uint64_t>(static_cast<uint32_t>(cell.z()) & 0x1fffff));
+    cells.emplace(key, p);
+  }
+  std::vector<std::pair<uint64_t, Eigen::Vector3f>> sorted(cells.begin(), cells.end());
+  std::sort(sorted.begin(), sorted.end(), [](const auto& x, const auto& y) { return x.first < y.first; });
+  std::vector<Eigen::Vector3f> points;
+  points.reserve(sorted.size());
+  for (const auto& c : sorted) points.push_back(c.second);
+  std::shuffle(points.begin(), points.end(), rng);
+  if (points.size() > max_points) points.resize(max_points);
+  return points;
 }
 
 }  // namespace ism

@@ -1,6 +1,8 @@
 #pragma once
 // Triangle meshes for the virtual scanner: loading (OBJ with polygons of any size, OFF, PLY)
 // and putting a CAD mesh into the world at real size, +z up.
+#include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -34,5 +36,10 @@ struct MeshPlacement {
 Mesh placeMesh(const Mesh& mesh, const MeshPlacement& placement);
 
 Mesh transformed(const Mesh& mesh, const Eigen::Isometry3f& pose);
+
+// Points spread evenly over the mesh's surface: an area-weighted random sample thinned to one
+// point per cube of edge `spacing`, then at most `max_points` of them, in random order so that
+// any prefix is an even sample too. The same for the same seed.
+std::vector<Eigen::Vector3f> sampleSurface(const Mesh& mesh, float spacing, size_t max_points, uint32_t seed = 1);
 
 }  // namespace ism

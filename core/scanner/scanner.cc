@@ -123,6 +123,35 @@ void applySensorModel(std::vector<float>* depth, const CameraIntrinsics& k, cons
   }
 }
 
+// Clears the pixels of `depth` (exact, camera at camera_to_world) whose surface the projector, at
+// (baseline, 0, 0) in the camera's frame, does not see: another surface lies before it from there.
+void castProjectorShadow(const std::vector<const Mesh*>& meshes, const Eigen::Isometry3f& camera_to_world,
+                         const CameraIntrinsics& k, float baseline, std::vector<float>* depth) {
+  Eigen::Isometry3f projector_to_world = camera_to_world;
+  projector_to_world.translation() += camera_to_world.linear() * Eigen::Vector3f(baseline, 0, 0);
+  std::vector<float> lit(depth->size(), std::numeric_limits<float>::infinity());
+  Rasterizer rasterizer(k, &lit, nullptr);
+  const Eigen::Isometry3f world_to_projector = projector_to_world.inverse();
+  std::vector<Eigen::Vector3f> vertices;
+  for (const Mesh* mesh : meshes) {
+    vertices.resize(mesh->vertices.size());
+    for (size_t i = 0; i < mesh->vertices.size(); ++i) vertices[i] = world_to_projector * mesh->vertices[i];
+    for (const auto& t : mesh->triangles) rasterizer.drawClipped(vertices[t[0]], vertices[t[1]], vertices[t[2]], 0);
+  }
+  for (int row = 0; row < k.height; ++row) {
+    for (int col = 0; col < k.width; ++col) {
+      float& z = (*depth)[static_cast<size_t>(row * k.width + col)];
+      if (!std::isfinite(z)) continue;
+      // The same point from the projector: shifted by the baseline along x.
+      const Eigen::Vector3f p((static_cast<float>(col) - k.cx) * z / k.fx - baseline, (static_cast<float>(row) - k.cy) * z / k.fy, z);
+      const long u = std::lround(k.fx * p.x() / p.z() + k.cx), v = std::lround(k.fy * p.y() / p.z() + k.cy);
+      if (u < 0 || v < 0 || u >= k.width || v >= k.height) continue;  // outside the pattern's field: left lit
+      // A little slack for the pixel grid on slanted surfaces: 2 cm and 3 % of the depth.
+      if (lit[static_cast<size_t>(v * k.width + u)] < z - 0.02f - 0.03f * z) z = std::numeric_limits<float>::infinity();
+    }
+  }
+}
+
 DepthImage render(const std::vector<const Mesh*>& meshes, const Eigen::Isometry3f& camera_to_world,
                   const CameraIntrinsics& intrinsics, const NoiseParams& noise, std::vector<int>* label) {
   checkIntrinsics(intrinsics);
@@ -146,6 +175,9 @@ DepthImage render(const std::vector<const Mesh*>& meshes, const Eigen::Isometry3
       }
       rasterizer.drawClipped(camera_vertices[t[0]], camera_vertices[t[1]], camera_vertices[t[2]], static_cast<int>(m));
     }
+  }
+  if (noise.enabled && noise.projector_shadow && noise.baseline > 0) {
+    castProjectorShadow(meshes, camera_to_world, intrinsics, noise.baseline, &image.depth);
   }
   applySensorModel(&image.depth, intrinsics, noise);
   return image;

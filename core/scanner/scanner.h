@@ -21,6 +21,11 @@ struct NoiseParams {
   // baseline, so depth steps grow with z^2. disparity_step = 0 turns quantisation off.
   float baseline = 0.075f;
   float disparity_step = 0.125f;
+  // The projector sits `baseline` to the camera's right (+x of the optical frame): surfaces the
+  // camera sees but the projector's pattern does not reach return nothing, the band of missing
+  // depth beside every occluding edge of a structured-light sensor (Landau, Choo and Beling,
+  // "Simulating Kinect infrared and depth images", IEEE Trans. Cybernetics 2016).
+  bool projector_shadow = true;
   float min_depth = 0.5f;  // closer surfaces return nothing
   float max_depth = 6.0f;
   uint32_t seed = 1;
