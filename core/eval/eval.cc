@@ -52,13 +52,14 @@ std::vector<NamedStrategy> seedCombinations(const Model& model) {
 }
 
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
-                                              const EvalRecognition& recognition) {
+                                              const EvalRecognition& recognition, const Scene* scene) {
   RecognitionOptions options;
   options.strategy = strategy;
   options.preset = recognition.preset;
   options.box_selection = false;  // the tables count peaks before selection too
   options.min_confidence = 0;     // down to the lowest confidence recognition looks at
-  return recognizeFeatures(model, features, options).hypotheses;
+  options.verify = recognition.verify;
+  return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 
 MeshSplit splitMeshes(const std::vector<TrainingMesh>& meshes, int train_per_category, int test_per_category) {

@@ -36,14 +36,16 @@ std::vector<NamedStrategy> seedCombinations(const Model& model);
 struct EvalRecognition {
   RecognitionPreset preset = RecognitionPreset::kDefault;
   float min_confidence = 0.5f;
+  bool verify = true;  // default preset, where the scene is at hand
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above
 // them for every category (passed_selection says whether it passed the box test), best first.
 // Default preset: one answer per object down to the lowest confidence, most confident first.
+// `scene`, the features' own, is what verification looks at (none: nothing verified).
 // Throws Error(kInvalidInput) when the model lacks the strategy's codebook or threshold.
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
-                                              const EvalRecognition& recognition = {});
+                                              const EvalRecognition& recognition = {}, const Scene* scene = nullptr);
 
 // ---------------------------------------------------------------------------------------------
 // (a) Baseline on synthetic scans

@@ -107,19 +107,23 @@ struct ThresholdStats {
 struct TrainingObject {
   Eigen::Vector3f size = Eigen::Vector3f::Zero();  // width, depth, height (m)
   float center_height = 0;                          // of its box centre above the floor (m)
+  // Points on the mesh's surface as placed (its box centred on x = y = 0, standing on z = 0), in
+  // random order so that any prefix is an even sample: what verification fits to the scene.
+  std::vector<Eigen::Vector3f> surface;
 };
 
-// A category's confidence for a peak of score s gathered from n supporting keypoints:
-// 1 / (1 + exp(-(a ln s + c ln(s / n) + b))), fitted to the peaks the model finds in synthetic
+// A category's confidence for a peak of score s gathered from n supporting keypoints, whose
+// verification fit is v (0.5 unverified): 1 / (1 + exp(-(a ln s + c ln(s / n) + d v + b))), fitted to the peaks the model finds in synthetic
 // scenes of held-out training objects among clutter. s / n, the vote mass per supporting
 // keypoint, says how well the keypoints agree whatever their number: the same object seen from
 // farther, or by a sparser sensor, has fewer keypoints but agrees as well.
 struct Calibration {
   float a = 0, b = 0, c = 0;
+  float d = 0;  // 0 in models calibrated without verification
   // Peaks below this score were not looked at when fitting: recognition does not look at them.
   float min_score = 0;
   int positives = 0, negatives = 0;  // the peaks it was fitted to
-  float confidence(float score, int support) const;
+  float confidence(float score, int support, float fit = 0.5f) const;
 };
 
 struct CategoryModel {

@@ -326,9 +326,15 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
     cat.box = {b.min_volume(), b.max_volume(), b.max_edge(), b.mean_volume(), b.std_volume(), b.mean_max_edge(),
                b.std_max_edge()};
     for (const auto& o : c.objects()) {
-      const TrainingObject object{{o.width(), o.depth(), o.height()}, o.center_height()};
+      TrainingObject object{{o.width(), o.depth(), o.height()}, o.center_height(), {}};
       if (!(object.size.allFinite() && (object.size.array() > 0).all() && std::isfinite(object.center_height))) {
         r.fail(where + " has a training object with a size that is not positive");
+      }
+      if (o.surface_size() % 3 != 0) r.fail(where + " has a training shape whose coordinates are not x, y, z triples");
+      for (int i = 0; i + 2 < o.surface_size(); i += 3) {
+        const Eigen::Vector3f p(o.surface(i), o.surface(i + 1), o.surface(i + 2));
+        if (!p.allFinite()) r.fail(where + " has a training shape point that is not finite");
+        object.surface.push_back(p);
       }
       cat.objects.push_back(object);
     }
@@ -353,11 +359,19 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
     }
     if (c.has_calibration()) {
       const auto& k = c.calibration();
-      if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && k.min_score() >= 0 &&
-            std::isfinite(k.min_score()))) {
+      if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && std::isfinite(k.d()) &&
+            k.min_score() >= 0 && std::isfinite(k.min_score()))) {
         r.fail(where + " has a calibration that is not finite");
       }
-      cat.calibration = Calibration{k.a(), k.b(), k.c(), k.min_score(), k.positives(), k.negatives()};
+      Calibration calibration;
+      calibration.a = k.a();
+      calibration.b = k.b();
+      calibration.c = k.c();
+      calibration.d = k.d();
+      calibration.min_score = k.min_score();
+      calibration.positives = k.positives();
+      calibration.negatives = k.negatives();
+      cat.calibration = calibration;
     }
     cat.training_models = c.training_models();
     cat.training_scans = c.training_scans();
@@ -448,12 +462,18 @@ std::string serializeModel(const Model& model) {
       object->set_depth(o.size.y());
       object->set_height(o.size.z());
       object->set_center_height(o.center_height);
+      for (const auto& p : o.surface) {
+        object->add_surface(p.x());
+        object->add_surface(p.y());
+        object->add_surface(p.z());
+      }
     }
     if (c.calibration) {
       auto* calibration = out->mutable_calibration();
       calibration->set_a(c.calibration->a);
       calibration->set_b(c.calibration->b);
       calibration->set_c(c.calibration->c);
+      calibration->set_d(c.calibration->d);
       calibration->set_min_score(c.calibration->min_score);
       calibration->set_positives(c.calibration->positives);
       calibration->set_negatives(c.calibration->negatives);

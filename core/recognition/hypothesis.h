@@ -1,5 +1,6 @@
 #pragma once
 // A hypothesis: what the peak search finds and recognition returns, one object of a category.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -11,6 +12,24 @@ namespace ism {
 struct Alternative {
   std::string category;
   float confidence = 0;
+};
+
+// How the scene agrees with the category's best fitting training shape at the hypothesis
+// (verification.h): of the shape's pixels the sensor looked at, how many it measured at the
+// shape's depth, and how many it saw through.
+struct Verification {
+  int seen = 0;        // shape pixels with a measured depth not in front of the shape
+  int consistent = 0;  // of them, at the shape's depth
+  // The share of agreeing pixels, shrunk towards 0.5 by ten pixels' worth of each (a Beta(10, 10)
+  // prior): a shape the scene hides but for a few pixels is neither confirmed nor refuted.
+  float fit() const { return (static_cast<float>(consistent) + 10.0f) / (static_cast<float>(seen) + 20.0f); }
+  // Agreeing pixels on surface a more confident hypothesis of the category explained (not in
+  // `seen`): more of them than `consistent` makes this hypothesis that one's duplicate.
+  int claimed = 0;
+  bool duplicate() const { return claimed > consistent; }
+  int object = -1;     // the shape's training object (CategoryModel::objects)
+  float yaw = 0;       // its heading about up in the gravity frame (rad)
+  Eigen::Vector3f center = Eigen::Vector3f::Zero();  // its box centre, scene coordinates
 };
 
 struct Hypothesis {
@@ -35,6 +54,7 @@ struct Hypothesis {
   Eigen::Vector3f support_centroid = Eigen::Vector3f::Zero();
   bool passed_selection = true;  // box volume within range and longest edge below the maximum
   std::vector<Alternative> alternatives;  // best first
+  std::optional<Verification> verification;  // default preset, models with training shapes
   std::vector<Eigen::Vector3f> support_keypoints;  // when asked for
   std::vector<int> support_indices;  // the supporting keypoints as indices into the Features
 };

@@ -8,6 +8,7 @@
 #include "core/common/error.h"
 #include "core/recognition/suppression.h"
 #include "core/recognition/upright_boxes.h"
+#include "core/recognition/verification.h"
 
 namespace ism {
 
@@ -30,8 +31,15 @@ struct ConfidenceCurve {
   std::optional<Calibration> calibration;
   float threshold = 0;
   float operator()(const Hypothesis& peak) const {
-    if (calibration) return calibration->confidence(peak.score, peak.support);
+    if (calibration) {
+      return calibration->confidence(peak.score, peak.support, peak.verification ? peak.verification->fit() : 0.5f);
+    }
     return threshold > 0 ? 1.0f - std::exp2(-peak.score / threshold) : 1.0f;
+  }
+  // The most a peak can reach once verified: with the best fit, when the fit raises confidence.
+  float best(const Hypothesis& peak) const {
+    if (calibration && calibration->d > 0) return calibration->confidence(peak.score, peak.support, 1.0f);
+    return (*this)(peak);
   }
   // The lowest score a peak of at least `confidence` can have: what the peak search starts from.
   float lowestScore(float confidence) const {
@@ -159,7 +167,7 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
         all.push_back(std::move(peak));
         continue;
       }
-      if (peak.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
+      if (plan.confidence[s].best(peak) < std::max(options.min_confidence, kLowestConfidence)) continue;
       estimateUprightBox(hough.caster(), category.bin_size / 2, peak);
       peak.passed_selection = withinHeightPrior(peak, category, features, model.voting.height_tolerance);
       (peak.passed_selection ? all : result.rejected).push_back(std::move(peak));
@@ -174,6 +182,32 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
   result.timings.add("vote", vote_ms);
   result.timings.add("hypotheses", peak_ms);
   return all;
+}
+
+// Default preset: each category's peaks merged to one per object, then verified against the
+// scene, and their confidences made again with the fit. A hypothesis whose agreeing surface is
+// mostly another's of its category (their boxes overlap too little to be merged) is dropped.
+void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
+                 const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
+  ScopedStage stage(&result.timings, "verify");
+  const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
+  std::vector<Hypothesis> verified;
+  const VerificationScene view = makeVerificationScene(scene, features.gravity);
+  for (size_t s = 0; s < plan.categories.size(); ++s) {
+    const std::string& name = model.categories[static_cast<size_t>(plan.categories[s])].name;
+    std::vector<Hypothesis> own;
+    for (auto& h : all) {
+      if (h.category == name) own.push_back(std::move(h));
+    }
+    if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity);
+    verifyHypotheses(view, model, own, {}, options.should_stop);
+    for (auto& h : own) {
+      if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
+      h.confidence = plan.confidence[s](h);
+      if (h.confidence >= std::max(options.min_confidence, kLowestConfidence)) verified.push_back(std::move(h));
+    }
+  }
+  all = std::move(verified);
 }
 
 // The seed's preset ranks the hypotheses of every category against each other by
@@ -210,22 +244,29 @@ void selectHypotheses(std::vector<Hypothesis> all, const Features& features, con
   }
 }
 
-void recognizePlanned(const Model& model, const Plan& plan, const Features& features, const RecognitionOptions& options,
-                      RecognitionResult& result) {
+void recognizePlanned(const Model& model, const Plan& plan, const Features& features, const Scene* scene,
+                      const RecognitionOptions& options, RecognitionResult& result) {
   result.keypoints = features.size();
   throwIfStopped(options.should_stop, "codeword activation");
   const auto activations = activateCodewords(model, plan, features, options, result.timings);
   result.gravity = features.gravity;
-  selectHypotheses(findAllPeaks(model, plan, features, activations, options, result), features, options, result);
+  std::vector<Hypothesis> all = findAllPeaks(model, plan, features, activations, options, result);
+  const bool shapes = std::any_of(plan.categories.begin(), plan.categories.end(),
+                                  [&](int c) { return hasShapes(model.categories[static_cast<size_t>(c)]); });
+  if (options.preset == RecognitionPreset::kDefault && options.verify && scene != nullptr && shapes) {
+    verifyPeaks(model, plan, features, *scene, options, all, result);
+  }
+  selectHypotheses(std::move(all), features, options, result);
   if (options.keep_votes) result.keypoint_positions = features.positions;
 }
 
 }  // namespace
 
-RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options) {
+RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options,
+                                    const Scene* scene) {
   const Plan plan = planRecognition(model, options);
   RecognitionResult result;
-  recognizePlanned(model, plan, features, options, result);
+  recognizePlanned(model, plan, features, scene, options, result);
   return result;
 }
 
@@ -239,7 +280,7 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
                                                &result.timings, options.should_stop);
   result.input_points = front.input_points;
   result.surface_points = front.surface_points;
-  recognizePlanned(model, plan, front.features, options, result);
+  recognizePlanned(model, plan, front.features, &scene, options, result);
   return result;
 }
 

@@ -46,6 +46,10 @@ struct RecognitionOptions {
   // Default preset: merge and compete overlapping hypotheses (suppression.h); false keeps every
   // peak above the threshold (calibration labels them one by one).
   bool one_answer_per_object = true;
+  // Default preset: check each hypothesis against the scene's depth with the category's training
+  // shapes (verification.h), where the model keeps them; the fit enters the confidence and the
+  // box becomes the best fitting shape's.
+  bool verify = true;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)
@@ -71,7 +75,9 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
 
 // recognize() after the front end: activation, voting, peak search and box selection on
 // already extracted features (evaluation runs the front end once and every strategy on it).
-// Same errors as recognize() except for the scene; the point counts of the result stay 0.
-RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options);
+// `scene`, the one the features come from, is what verification looks at; without it nothing is
+// verified. Same errors as recognize() except for the scene; the point counts of the result stay 0.
+RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options,
+                                    const Scene* scene = nullptr);
 
 }  // namespace ism

@@ -62,13 +62,16 @@ struct Canvas {
 std::string hypothesesTable(const RecognitionResult& result, bool include_rejected) {
   std::string out;
   char line[256];
-  std::snprintf(line, sizeof line, "%-16s %10s %8s %9s %24s %18s %7s%s\n", "category", "confidence", "score",
-                "threshold", "centre (m)", "box (m)", "support", include_rejected ? "  selection" : "");
+  std::snprintf(line, sizeof line, "%-16s %10s %8s %9s %24s %18s %7s %5s%s\n", "category", "confidence", "score",
+                "threshold", "centre (m)", "box (m)", "support", "fit", include_rejected ? "  selection" : "");
   out += line;
   const auto add = [&](const Hypothesis& h, const char* selection) {
-    std::snprintf(line, sizeof line, "%-16s %10.3f %8.3f %9.3f %7.2f %7.2f %7.2f   %5.2f %5.2f %5.2f %7d%s%s\n",
+    char fit[16] = "    -";  // not verified
+    if (h.verification) std::snprintf(fit, sizeof fit, "%5.2f", h.verification->fit());
+    std::snprintf(line, sizeof line, "%-16s %10.3f %8.3f %9.3f %7.2f %7.2f %7.2f   %5.2f %5.2f %5.2f %7d %s%s%s\n",
                   h.category.c_str(), h.confidence, h.score, h.threshold, h.center.x(), h.center.y(), h.center.z(),
-                  h.box.size.x(), h.box.size.y(), h.box.size.z(), h.support, include_rejected ? "  " : "", selection);
+                  h.box.size.x(), h.box.size.y(), h.box.size.z(), h.support, fit, include_rejected ? "  " : "",
+                  selection);
     out += line;
     for (const auto& a : h.alternatives) {
       std::snprintf(line, sizeof line, "  or %-12s %10.3f\n", a.category.c_str(), a.confidence);
@@ -100,6 +103,11 @@ nlohmann::json toJson(const Hypothesis& h) {
                       {"support_centroid", toJson(h.support_centroid)},
                       {"upright_box", h.upright_box},
                       {"passed_selection", h.passed_selection}};
+  if (h.verification) {
+    const Verification& v = *h.verification;
+    j["verification"] = {{"fit", v.fit()},          {"seen", v.seen},     {"consistent", v.consistent}, {"claimed", v.claimed},
+                         {"training_object", v.object}, {"yaw", v.yaw}, {"center", toJson(v.center)}};
+  }
   if (!h.support_keypoints.empty()) {
     auto& points = j["support_keypoints"] = nlohmann::json::array();
     for (const auto& p : h.support_keypoints) points.push_back(toJson(p));

@@ -56,6 +56,8 @@ int main(int argc, char** argv) {
   app.add_option("--picture", picture, "write the scene with the boxes drawn as PNG (one input only)");
   app.add_option("--debug-ply", debug_ply, "write keypoints, votes and centres as PLY (one input only)");
   app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
+  bool no_verify = false;
+  app.add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified against the scene");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -89,6 +91,7 @@ int main(int argc, char** argv) {
       given_up = v;
     }
     options.box_selection = !no_box_selection;
+    options.verify = !no_verify;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 

@@ -86,6 +86,8 @@ int main(int argc, char** argv) {
   real->add_option("--eye-height", eye_height, "room-centre viewpoint height above the floor (m)")
       ->capture_default_str();
   real->add_option("--json", json_path, "also write the results as JSON");
+  bool no_verify = false;
+  real->add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified (verification.h)");
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -123,7 +125,7 @@ int main(int argc, char** argv) {
       json = ism::baselineToJson(result);
     } else {
       ism::RealEvalParams params;
-      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence};
+      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

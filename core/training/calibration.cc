@@ -13,6 +13,7 @@
 #include "core/frontend/frontend.h"
 #include "core/recognition/recognizer.h"
 #include "core/recognition/suppression.h"
+#include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
 #include "core/training/parallel_for.h"
 #include "core/training/votes.h"
@@ -63,7 +64,7 @@ struct Room {
 // Up to max_objects of `candidates` (held-out furniture) standing apart on the floor, a wall or
 // two behind them, a few boxes, seen from a random camera.
 Room composeRoom(const std::vector<const PlacedObject*>& candidates, const CalibrationParams& params,
-                 std::mt19937& rng) {
+                 const NoiseParams& noise, std::mt19937& rng) {
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   const auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
   std::vector<SceneObject> objects;
@@ -109,6 +110,7 @@ Room composeRoom(const std::vector<const PlacedObject*>& candidates, const Calib
                       uniform(params.camera_height_min, params.camera_height_max)};
   scene.camera_target = {uniform(-0.5f, 0.5f), uniform(-0.5f, 0.5f), uniform(0.2f, 0.6f)};
   scene.floor_size = 8.0f;
+  scene.noise = noise;  // the training scans' sensor
   scene.noise.seed = static_cast<uint32_t>(rng());
   room.scene = composeScene(objects, scene);
   return room;
@@ -117,7 +119,7 @@ Room composeRoom(const std::vector<const PlacedObject*>& candidates, const Calib
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
 // positive, every other peak that is not another peak of that object a negative.
 void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
-                std::vector<CalibrationSample>& out) {
+                const VerificationScene& view, std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -125,6 +127,10 @@ void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> pe
       if (p.category == name) own.push_back(p);
     }
     own = suppressOverlaps(std::move(own), to_gravity);  // one per object, as recognition keeps
+    verifyHypotheses(view, model, own);
+    own.erase(std::remove_if(own.begin(), own.end(),
+                             [](const Hypothesis& h) { return h.verification && h.verification->duplicate(); }),
+              own.end());
     std::vector<bool> matched(room.categories.size(), false);
     for (const auto& p : own) {  // most confident, i.e. highest score, first
       bool positive = false;
@@ -139,7 +145,7 @@ void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> pe
                    intersectionOverUnion(uprightBoxOf(p.box, to_gravity), box) >= 0.25f;
         if (positive) matched[o] = true;
       }
-      out.push_back({static_cast<int>(c), p.score, p.support, positive});
+      out.push_back({static_cast<int>(c), p.score, p.support, positive, p.verification ? p.verification->fit() : 0.5f});
     }
   }
 }
@@ -190,9 +196,10 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     options.one_answer_per_object = false;
     parallelFor(cp.rooms_per_fold, trainingThreads(params.threads), [&](int r) {
       std::mt19937 rng(cp.seed + static_cast<uint32_t>(fold * 100003 + r));
-      const Room room = composeRoom(candidates, cp, rng);
+      const Room room = composeRoom(candidates, cp, params.noise, rng);
       if (room.scene.scene.cloud->size() < 1000) return;  // the camera saw next to nothing
       const Features features = extractFeatures(room.scene.scene, fold_model.front_end, false).features;
+      const VerificationScene view = makeVerificationScene(room.scene.scene, features.gravity);
       std::vector<CalibrationSample> found;
       for (size_t c = 0; c < fold_model.categories.size(); ++c) {
         RecognitionOptions category_options = options;
@@ -201,9 +208,10 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
                                                                  VoteWeighting::kLocalization});
         if (t == fold_model.categories[c].thresholds.end()) continue;
         category_options.min_score = cp.lowest_score_fraction * t->second;
+        category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
         auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
         const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-        labelPeaks(fold_model, room, std::move(peaks), to_gravity, found);
+        labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, found);
       }
       std::lock_guard<std::mutex> lock(mutex);
       samples.insert(samples.end(), found.begin(), found.end());
@@ -219,20 +227,21 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
     throw Error(ErrorCode::kInvalidInput, "calibration needs positive and negative peaks, got " +
                                               std::to_string(fit.positives) + " and " + std::to_string(fit.negatives));
   }
-  // Features (ln s, ln(s / n), 1); weights (a, c, b).
-  std::vector<Eigen::Vector3d> x;
+  // Features (ln s, ln(s / n), fit, 1); weights (a, c, d, b).
+  using Vector = Eigen::Vector4d;
+  std::vector<Vector> x;
   std::vector<double> y;
   for (const auto& s : samples) {
     const double score = std::max(static_cast<double>(s.score), 1e-9);
-    x.emplace_back(std::log(score), std::log(score / std::max(s.support, 1)), 1.0);
+    x.emplace_back(std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit), 1.0);
     y.push_back(s.positive ? 1.0 : 0.0);
   }
   // Newton's method on the mean log-loss, each step halved until the loss falls; the ridge (not
   // on the intercept) keeps a separable set finite.
   constexpr double kRidge = 1e-3;
-  const Eigen::Vector3d ridge(kRidge, kRidge, 0);
+  const Vector ridge(kRidge, kRidge, kRidge, 0);
   const double n = static_cast<double>(x.size());
-  const auto loss = [&](const Eigen::Vector3d& w) {
+  const auto loss = [&](const Vector& w) {
     double sum = 0;
     for (size_t i = 0; i < x.size(); ++i) {
       const double z = w.dot(x[i]);
@@ -241,18 +250,18 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
     }
     return sum / n + 0.5 * w.dot(ridge.cwiseProduct(w));
   };
-  Eigen::Vector3d w(1, 0, 0);
+  Vector w(1, 0, 0, 0);
   double current = loss(w);
   for (int iteration = 0; iteration < 100; ++iteration) {
-    Eigen::Vector3d gradient = ridge.cwiseProduct(w);
-    Eigen::Matrix3d hessian = ridge.asDiagonal();
-    hessian(2, 2) += 1e-9;
+    Vector gradient = ridge.cwiseProduct(w);
+    Eigen::Matrix4d hessian = ridge.asDiagonal();
+    hessian(3, 3) += 1e-9;
     for (size_t i = 0; i < x.size(); ++i) {
       const double p = 1.0 / (1.0 + std::exp(-w.dot(x[i])));
       gradient += (p - y[i]) / n * x[i];
       hessian += p * (1 - p) / n * x[i] * x[i].transpose();
     }
-    const Eigen::Vector3d delta = hessian.ldlt().solve(gradient);
+    const Vector delta = hessian.ldlt().solve(gradient);
     double step = 1;
     while (step > 1e-6 && !(loss(w - step * delta) < current)) step /= 2;
     if (step <= 1e-6) break;
@@ -262,9 +271,10 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
     current = next;
     if (converged) break;
   }
-  fit.a = static_cast<float>(w.x());
-  fit.c = static_cast<float>(w.y());
-  fit.b = static_cast<float>(w.z());
+  fit.a = static_cast<float>(w[0]);
+  fit.c = static_cast<float>(w[1]);
+  fit.d = static_cast<float>(w[2]);
+  fit.b = static_cast<float>(w[3]);
   return fit;
 }
 
@@ -286,7 +296,8 @@ void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::
       const auto t = category.thresholds.find({CodebookType::kGlobal, model.trained_knn.strategy, VoteWeighting::kLocalization});
       fit.min_score = t == category.thresholds.end() ? 0.0f : params.calibration.lowest_score_fraction * t->second;
       category.calibration = fit;
-      line << category.name << " calibration: ln s " << fit.a << ", ln(s / support) " << fit.c << ", bias " << fit.b
+      line << category.name << " calibration: ln s " << fit.a << ", ln(s / support) " << fit.c << ", fit " << fit.d
+           << ", bias " << fit.b
            << " (" << fit.positives << " positive and " << fit.negatives << " negative peaks)";
     } catch (const Error& e) {
       category.calibration.reset();

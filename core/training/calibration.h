@@ -7,8 +7,8 @@
 // floor, walls and boxes, furniture the model was not trained on (k-fold over the training
 // objects, votes of the held-out fold left out), cameras at a robot's and a person's height.
 // Every peak of a category is labelled by whether an object of that category is there; a
-// logistic regression over the log score and the log score per supporting keypoint gives the
-// confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
+// logistic regression over the log score, the log score per supporting keypoint and, where the
+// model keeps training shapes, the verification's fit gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
 #include <string>
 #include <vector>
 
@@ -31,6 +31,7 @@ struct CalibrationSample {
   float score = 0;
   int support = 0;
   bool positive = false;
+  float fit = 0.5f;  // Verification::fit(), 0.5 when not verified
 };
 
 // The peaks of the calibration scenes, every category's. `scans` are the training scans the
@@ -39,7 +40,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
                                                   const std::vector<PlacedObject>& objects,
                                                   const TrainingParams& params);
 
-// Logistic regression of `positive` on ln score and ln(score / support) (Newton's method with
+// Logistic regression of `positive` on ln score, ln(score / support) and the fit (Newton's method with
 // step halving, a little ridge so that a separable category still gets finite slopes). Throws
 // Error(kInvalidInput) without both positives and negatives.
 Calibration fitCalibration(const std::vector<CalibrationSample>& samples);

@@ -265,6 +265,8 @@ TrainingParams seedTrainingParams() {
   params.voting = VotingParams{VoteFrame::kLrf, 0.0f};
   params.render_floor = false;
   params.calibration.enabled = false;
+  params.shape_spacing = 0;
+  params.noise.projector_shadow = false;
   return params;
 }
 
@@ -371,6 +373,26 @@ Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<s
   return model;
 }
 
+namespace {
+
+// Each training object's points for verification, sampled from its placed mesh.
+void keepShapes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>& placed, const TrainingParams& params,
+                Model& model) {
+  const std::vector<int> model_index = modelIndices(meshes);
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    auto category = std::find_if(model.categories.begin(), model.categories.end(),
+                                 [&](const CategoryModel& c) { return c.name == meshes[i].category; });
+    if (category == model.categories.end()) continue;
+    const auto index = static_cast<size_t>(model_index[i]);
+    if (index >= category->objects.size()) continue;  // a category without sizes has no objects
+    category->objects[index].surface = sampleSurface(placed[i], params.shape_spacing,
+                                                     static_cast<size_t>(std::max(0, params.shape_points)),
+                                                     static_cast<uint32_t>(i + 1));
+  }
+}
+
+}  // namespace
+
 Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& params) {
   if (meshes.empty()) throw Error(ErrorCode::kInvalidInput, "training: no meshes");
   const auto start = Clock::now();
@@ -381,6 +403,7 @@ Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& param
   const std::vector<Mesh> placed = placeMeshes(meshes, params);
   const std::vector<TrainingScan> scans = scanMeshes(meshes, placed, params);
   Model model = trainFromScans(scans, categories, params);
+  if (params.shape_spacing > 0) keepShapes(meshes, placed, params, model);
   if (params.calibration.enabled && model.global_codebook) {
     const auto calibration_start = Clock::now();
     std::vector<PlacedObject> objects;

@@ -100,7 +100,12 @@ class EndToEnd : public ::testing::Test {
     std::cout << "  recognition took " << secondsSince(start) << " s, " << result.keypoints << " keypoints\n";
     for (const auto& h : result.hypotheses) {
       std::cout << "    " << h.category << " score " << h.score << " (threshold " << h.threshold << ") at "
-                << h.center.transpose() << ", support " << h.support << '\n';
+                << h.center.transpose() << ", support " << h.support << ", confidence " << h.confidence;
+      if (h.verification) {
+        std::cout << ", fit " << h.verification->fit() << " (" << h.verification->consistent << " of "
+                  << h.verification->seen << ") box at " << h.box.center.transpose();
+      }
+      std::cout << '\n';
     }
     for (const auto& h : result.rejected) {
       std::cout << "    rejected " << h.category << " score " << h.score << " at " << h.center.transpose() << '\n';

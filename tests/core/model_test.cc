@@ -43,6 +43,18 @@ Model sampleModel() {
     c.thresholds[{CodebookType::kSeparated, ActivationStrategy::kCutoff, VoteWeighting::kCategorization}] = 12.0f;
     c.training_models = 3;
     c.training_scans = 36;
+    for (int o = 0; o < 3; ++o) {
+      c.objects.push_back({Eigen::Vector3f(0.5f + o, 0.6f, 0.9f), 0.45f, {Eigen::Vector3f(0.1f * o, 0.2f, 0.3f), Eigen::Vector3f::Random()}});
+    }
+    Calibration calibration;
+    calibration.a = 1.5f;
+    calibration.b = -2.0f;
+    calibration.c = 0.25f;
+    calibration.d = 3.5f;
+    calibration.min_score = 0.01f;
+    calibration.positives = 40;
+    calibration.negatives = 400;
+    c.calibration = calibration;
     m.categories.push_back(c);
   }
   m.provenance = {{"couch\ta.obj\tme", "bed\tb.obj\tyou"}, 72, "2024-01-01T00:00:00Z", "v1-test", "ism-train ..."};
@@ -105,6 +117,15 @@ TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
     EXPECT_EQ(a.thresholds, b.thresholds);
     EXPECT_EQ(b.training_models, 3);
     EXPECT_EQ(b.training_scans, 36);
+    ASSERT_EQ(b.objects.size(), a.objects.size());
+    for (size_t o = 0; o < a.objects.size(); ++o) {
+      EXPECT_EQ(b.objects[o].size, a.objects[o].size);
+      EXPECT_EQ(b.objects[o].center_height, a.objects[o].center_height);
+      EXPECT_EQ(b.objects[o].surface, a.objects[o].surface);
+    }
+    ASSERT_TRUE(b.calibration);
+    EXPECT_EQ(b.calibration->d, 3.5f);
+    EXPECT_EQ(b.calibration->confidence(2.0f, 5, 0.8f), a.calibration->confidence(2.0f, 5, 0.8f));
   }
   EXPECT_EQ(r.provenance.meshes, m.provenance.meshes);
   EXPECT_EQ(r.provenance.scans, 72);

@@ -3,7 +3,7 @@
 # from the shipped model's meshes (Debian's sweethome3d-furniture) and evaluated with ism-eval
 # on the development scans in ../shared/data/real and the shipped sample scene. Every row adds
 # one step to the one above it; the first is the seed's pipeline.
-#   tests/eval/ablation.sh [BUILD_DIR] [OUTPUT.md]      (about 25 minutes on 2 cores)
+#   tests/eval/ablation.sh [BUILD_DIR] [OUTPUT.md]      (about 35 minutes on 2 cores)
 # Writes the table to OUTPUT.md (default: stdout) and keeps the models and ism-eval's JSON in
 # BUILD_DIR/ablation/.
 set -euo pipefail
@@ -17,15 +17,19 @@ mkdir -p "$work"
 manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
            --manifest-only)
 
+# Rows before the last two train without what those add.
+old="--no-verification --no-projector-shadow"
 # name | ism-train options | ism-eval options | what the row adds
 steps=(
   "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
-  "planes|--cloud-keypoints boundary --vote-frame lrf --height-tolerance 0 --no-calibration|--preset seed|+ up and floor: floor and walls never keypoints, training meshes on a floor"
-  "upright|--cloud-keypoints boundary --height-tolerance 0 --no-calibration|--preset seed|+ upright vote frames"
-  "heights|--cloud-keypoints boundary --no-calibration|--preset seed|+ the height test: votes only from training keypoints at the keypoint's height"
-  "one-answer|--cloud-keypoints boundary --no-calibration|--preset default|+ upright boxes from the training objects, height prior, one answer per object"
-  "calibrated|--cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
-  "range-image||--preset default|+ unorganized clouds: contours of the range image from the sensor (the default)"
+  "planes|$old --cloud-keypoints boundary --vote-frame lrf --height-tolerance 0 --no-calibration|--preset seed|+ up and floor: floor and walls never keypoints, training meshes on a floor"
+  "upright|$old --cloud-keypoints boundary --height-tolerance 0 --no-calibration|--preset seed|+ upright vote frames"
+  "heights|$old --cloud-keypoints boundary --no-calibration|--preset seed|+ the height test: votes only from training keypoints at the keypoint's height"
+  "one-answer|$old --cloud-keypoints boundary --no-calibration|--preset default|+ upright boxes from the training objects, height prior, one answer per object"
+  "calibrated|$old --cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
+  "range-image|$old|--preset default|+ unorganized clouds: contours of the range image from the sensor"
+  "shadow|--no-verification|--preset default|+ the projector's shadow in training scans and calibration rooms"
+  "verified||--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence (the default)"
 )
 rows=()
 for step in "${steps[@]}"; do

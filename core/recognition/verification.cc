@@ -1,0 +1,278 @@
+#include "core/recognition/verification.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <string>
+#include <tuple>
+
+#include <Eigen/Geometry>
+
+#include "core/common/upright_box.h"
+
+namespace ism {
+namespace {
+
+constexpr float kPi = static_cast<float>(M_PI);
+
+// A pinhole view from the sensor towards the hypothesis, in the gravity frame relative to the
+// sensor: pixel coordinates are tangents (u = x / z, v = y / z) in units of `pixel`.
+struct LocalView {
+  Eigen::Matrix3f axes;  // rows: the view's x, y and z (towards the hypothesis)
+  float half = 0;        // half the window's width, in tangent units
+  float pixel = 0;
+  int width = 0;
+  std::vector<float> depth;  // the nearest measured depth per pixel; infinity where none
+
+  // The pixel of p (relative to the sensor) and its depth, or -1 outside the window.
+  int project(const Eigen::Vector3f& p, float& z) const {
+    const Eigen::Vector3f q = axes * p;
+    z = q.z();
+    if (!(z > 0.05f)) return -1;
+    const float u = q.x() / z + half, v = q.y() / z + half;
+    if (!(u >= 0 && v >= 0)) return -1;
+    const int col = static_cast<int>(u / pixel), row = static_cast<int>(v / pixel);
+    if (col >= width || row >= width) return -1;
+    return row * width + col;
+  }
+};
+
+// The measured depths around `center` (relative to the sensor) within `radius`; nothing when the
+// sensor is inside that sphere or sees too few points there. The pixel follows the scene's own
+// density in the window (the points spread over its solid angle), so a sparse room sample and a
+// dense depth frame both fill about two thirds of their pixels.
+std::optional<LocalView> lookAt(const VerificationScene& scene, const Eigen::Vector3f& center, float radius) {
+  const float distance = center.norm();
+  if (!(distance > 1.1f * radius)) return std::nullopt;
+  LocalView view;
+  const Eigen::Vector3f forward = center / distance;
+  Eigen::Vector3f side = Eigen::Vector3f::UnitZ().cross(forward);
+  if (side.norm() < 1e-3f) side = Eigen::Vector3f::UnitX().cross(forward);
+  side.normalize();
+  view.axes.row(0) = side.transpose();
+  view.axes.row(1) = forward.cross(side).transpose();
+  view.axes.row(2) = forward.transpose();
+  view.half = radius / std::sqrt(distance * distance - radius * radius);
+  std::vector<std::pair<float, float>> inside;  // (u, v) + half, then binned
+  std::vector<float> depths;
+  for (const auto& p : scene.points) {
+    const Eigen::Vector3f q = view.axes * p;
+    if (!(q.z() > 0.05f)) continue;
+    const float u = q.x() / q.z(), v = q.y() / q.z();
+    if (std::abs(u) >= view.half || std::abs(v) >= view.half) continue;
+    inside.emplace_back(u + view.half, v + view.half);
+    depths.push_back(q.z());
+  }
+  constexpr size_t kMinPoints = 30;
+  if (inside.size() < kMinPoints) return std::nullopt;
+  const float spacing = 2 * view.half / std::sqrt(static_cast<float>(inside.size()));
+  view.pixel = std::clamp(1.5f * spacing, 0.002f, 0.05f);
+  view.width = std::max(1, static_cast<int>(std::ceil(2 * view.half / view.pixel)));
+  view.depth.assign(static_cast<size_t>(view.width) * static_cast<size_t>(view.width),
+                    std::numeric_limits<float>::infinity());
+  for (size_t i = 0; i < inside.size(); ++i) {
+    const int col = std::min(view.width - 1, static_cast<int>(inside[i].first / view.pixel));
+    const int row = std::min(view.width - 1, static_cast<int>(inside[i].second / view.pixel));
+    float& d = view.depth[static_cast<size_t>(row * view.width + col)];
+    d = std::min(d, depths[i]);
+  }
+  return view;
+}
+
+float depthMargin(float z, float margin) {
+  const float sigma = 0.0012f + 0.0019f * (z - 0.4f) * (z - 0.4f);
+  return margin + 2 * sigma;
+}
+
+struct Pose {
+  int object = 0;
+  float yaw = 0;
+  Eigen::Vector2f xy = Eigen::Vector2f::Zero();  // box centre, relative to the sensor
+};
+
+struct Agreement {
+  int seen = 0, consistent = 0, tested = 0;
+  int claimed = 0;  // agreeing, on surface a better hypothesis explained
+  // What poses are ranked by: agreeing minus twice the seen-through share of the points looked
+  // at, so that a larger shape does not win by its size alone.
+  float rank() const { return tested > 0 ? static_cast<float>(consistent - 2 * (seen - consistent)) / static_cast<float>(tested) : 0.0f; }
+};
+
+// A cube of the gravity frame, for the surface a hypothesis has explained.
+uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
+  const Eigen::Vector3i c = (p / edge).array().floor().cast<int>();
+  return (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1fffff) << 42) |
+         (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1fffff) << 21) |
+         static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1fffff);
+}
+
+struct ShapeView {
+  const LocalView& view;
+  float floor_z = 0;
+  float margin = 0;
+  const std::unordered_set<uint64_t>* claimed = nullptr;  // explained by a better hypothesis
+  float cell = 0.04f;
+};
+
+// The front-most of the shape's first `points` points per pixel against the measured depth there.
+// Measured surface a better hypothesis of the category already explained counts neither way:
+// two overlapping hypotheses do not both take credit for one surface. With `explained`, the cells
+// of the agreeing points are added to it.
+Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
+                    std::vector<std::tuple<int, float, int>>& scratch, std::unordered_set<uint64_t>* explained = nullptr) {
+  const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  scratch.clear();
+  const int n = std::min<int>(points, static_cast<int>(shape.size()));
+  std::vector<Eigen::Vector3f> placed(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f& q = shape[static_cast<size_t>(i)];
+    placed[static_cast<size_t>(i)] = {c * q.x() - s * q.y() + pose.xy.x(), s * q.x() + c * q.y() + pose.xy.y(), q.z() + sv.floor_z};
+    float z = 0;
+    const int pixel = sv.view.project(placed[static_cast<size_t>(i)], z);
+    if (pixel >= 0) scratch.emplace_back(pixel, z, i);
+  }
+  std::sort(scratch.begin(), scratch.end());
+  Agreement a;
+  a.tested = n;
+  for (size_t i = 0; i < scratch.size(); ++i) {
+    const auto [pixel, z, index] = scratch[i];
+    if (i > 0 && std::get<0>(scratch[i - 1]) == pixel) continue;  // hidden behind the shape's own front
+    const float measured = sv.view.depth[static_cast<size_t>(pixel)];
+    const float m = depthMargin(z, sv.margin);
+    if (!std::isfinite(measured) || measured < z - m) continue;  // no measurement, or something in front
+    const bool agrees = measured <= z + m;
+    // The measured surface point behind the shape's: on the same ray, at the measured depth.
+    const uint64_t surface = cellOf(placed[static_cast<size_t>(index)] * (measured / z), sv.cell);
+    if (agrees && sv.claimed != nullptr && sv.claimed->count(surface) > 0) {
+      ++a.claimed;
+      continue;
+    }
+    ++a.seen;
+    if (!agrees) continue;
+    ++a.consistent;
+    if (explained != nullptr) explained->insert(surface);
+  }
+  return a;
+}
+
+}  // namespace
+
+VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
+                                        const VerificationParams& params) {
+  VerificationScene out;
+  out.origin = scene.sensor_origin;
+  if (gravity) {
+    out.to_gravity = gravity->toGravity();
+    if (gravity->hasFloor()) out.floor_z = *gravity->floor_level - gravity->up.dot(scene.sensor_origin);
+  }
+  const size_t n = scene.cloud->size();
+  const size_t stride = std::max<size_t>(1, (n + params.max_scene_points - 1) / std::max<size_t>(1, params.max_scene_points));
+  out.points.reserve(n / stride + 1);
+  for (size_t i = 0; i < n; i += stride) {
+    out.points.push_back(out.to_gravity * ((*scene.cloud)[i].getVector3fMap() - out.origin));
+  }
+  return out;
+}
+
+bool hasShapes(const CategoryModel& category) {
+  return !category.objects.empty() &&
+         std::all_of(category.objects.begin(), category.objects.end(), [](const TrainingObject& o) { return !o.surface.empty(); });
+}
+
+std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
+                                   const Hypothesis& hypothesis, const VerificationParams& params,
+                                   const std::unordered_set<uint64_t>* claimed, std::unordered_set<uint64_t>* explained) {
+  if (!hasShapes(category)) return std::nullopt;
+  const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
+  const Eigen::Vector3f center = box.center - scene.to_gravity * scene.origin;
+  const float floor_z = scene.floor_z.value_or(center.z() - box.size.z() / 2);
+  float reach = 0, height = 0, side = 0;  // the farthest any shape reaches from its middle; the tallest; the longest
+  for (const auto& o : category.objects) {
+    reach = std::max(reach, 0.5f * o.size.norm());
+    height = std::max(height, o.size.z());
+    side = std::max(side, o.size.head<2>().maxCoeff());
+  }
+  const float shift = std::max(params.min_shift, params.shift_fraction * side);
+  const Eigen::Vector3f middle(center.x(), center.y(), floor_z + height / 2);
+  const float radius = reach + static_cast<float>(params.coarse_steps) * shift + params.fine_shift + 0.1f;
+  const std::optional<LocalView> view = lookAt(scene, middle, radius);
+  if (!view) return std::nullopt;
+
+  std::vector<std::tuple<int, float, int>> scratch;
+  const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f};
+  std::vector<std::pair<float, Pose>> coarse;
+  for (size_t o = 0; o < category.objects.size(); ++o) {
+    for (int y = 0; y < params.coarse_yaws; ++y) {
+      for (int dx = -params.coarse_steps; dx <= params.coarse_steps; ++dx) {
+        for (int dy = -params.coarse_steps; dy <= params.coarse_steps; ++dy) {
+          const Pose pose{static_cast<int>(o), box.yaw + 2 * kPi * static_cast<float>(y) / static_cast<float>(params.coarse_yaws),
+                          center.head<2>() + shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
+          const Agreement a = agreement(sv, category.objects[o].surface, params.coarse_points, pose, scratch);
+          coarse.emplace_back(a.rank(), pose);
+        }
+      }
+    }
+  }
+  const size_t keep = std::min<size_t>(coarse.size(), static_cast<size_t>(std::max(1, params.refined_poses)));
+  std::partial_sort(coarse.begin(), coarse.begin() + static_cast<long>(keep), coarse.end(),
+                    [](const auto& a, const auto& b) { return a.first > b.first; });
+  Verification best;
+  Pose best_pose;
+  float best_rank = -std::numeric_limits<float>::infinity();
+  for (size_t k = 0; k < keep; ++k) {
+    const Pose& start = coarse[k].second;
+    for (int dyaw = -1; dyaw <= 1; ++dyaw) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        for (int dy = -1; dy <= 1; ++dy) {
+          const Pose pose{start.object, start.yaw + params.fine_yaw * static_cast<float>(dyaw),
+                          start.xy + params.fine_shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
+          const Agreement a = agreement(sv, category.objects[static_cast<size_t>(pose.object)].surface,
+                                        params.max_points, pose, scratch);
+          if (a.rank() <= best_rank) continue;
+          best_rank = a.rank();
+          best.seen = a.seen;
+          best.consistent = a.consistent;
+          best.claimed = a.claimed;
+          best.object = pose.object;
+          best.yaw = std::remainder(pose.yaw, 2 * kPi);
+          const TrainingObject& object = category.objects[static_cast<size_t>(pose.object)];
+          const Eigen::Vector3f fitted(pose.xy.x(), pose.xy.y(), floor_z + object.size.z() / 2);
+          best.center = scene.origin + scene.to_gravity.transpose() * fitted;
+          best_pose = pose;
+        }
+      }
+    }
+  }
+  if (explained != nullptr) {
+    agreement(sv, category.objects[static_cast<size_t>(best_pose.object)].surface, params.max_points, best_pose, scratch,
+              explained);
+  }
+  return best;
+}
+
+void verifyHypotheses(const VerificationScene& scene, const Model& model, std::vector<Hypothesis>& hypotheses,
+                      const VerificationParams& params, const ShouldStop& should_stop) {
+  // Most confident first; per category, the surface each has explained.
+  std::stable_sort(hypotheses.begin(), hypotheses.end(),
+                   [](const Hypothesis& a, const Hypothesis& b) { return a.confidence > b.confidence; });
+  std::map<std::string, std::unordered_set<uint64_t>> explained;
+  for (auto& h : hypotheses) {
+    throwIfStopped(should_stop, "verification");
+    const CategoryModel* category = model.find(h.category);
+    if (category == nullptr || !hasShapes(*category)) continue;
+    std::unordered_set<uint64_t>& own = explained[h.category];
+    std::unordered_set<uint64_t> mine;
+    h.verification = verify(scene, *category, h, params, &own, &mine);
+    own.insert(mine.begin(), mine.end());
+    if (!h.verification) continue;
+    UprightBox box;
+    box.size = category->objects[static_cast<size_t>(h.verification->object)].size;
+    box.yaw = h.verification->yaw;
+    box.center = scene.to_gravity * h.verification->center;
+    h.box = box.toScene(scene.to_gravity);
+    h.upright_box = true;
+  }
+}
+
+}  // namespace ism

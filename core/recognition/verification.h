@@ -1,0 +1,79 @@
+#pragma once
+// Verification: voting proposes, the scene decides. Each hypothesis is checked against the depth
+// the sensor measured: the category's training shapes (points on each training mesh, kept in the
+// model) are placed upright on the floor at the hypothesis, turned through headings and moved a
+// little, and seen from the sensor. Where a shape's front-most point in a pixel lies at the depth
+// the sensor measured there, the scene agrees with it; where the sensor measured farther, it saw
+// through the shape, and a solid object cannot be there (free-space violation); where it measured
+// nearer, something else hides that part and nothing is said. The best pose's agreement is the
+// hypothesis' fit, which the category's calibration turns into confidence with the vote score.
+// This is hypothesis verification as in Aldoma, Tombari, Di Stefano and Vincze, "A global
+// hypotheses verification method for 3D object recognition", ECCV 2012 (inliers and the
+// free-space term), done per hypothesis on a depth buffer instead of jointly, and with a pose
+// search in the gravity frame instead of ICP, since furniture only turns about up.
+#include <cstdint>
+#include <optional>
+#include <unordered_set>
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "core/common/gravity_frame.h"
+#include "core/common/types.h"
+#include "core/model/model.h"
+#include "core/recognition/hypothesis.h"
+
+namespace ism {
+
+struct VerificationParams {
+  int coarse_yaws = 8;          // headings tried, evenly spaced, starting from the box's
+  // The centre is also tried up to coarse_steps steps off along x and y, each step this share of
+  // the category's longest side but at least min_shift. Steps growing with the size (0.12 of it,
+  // two of them) fitted couches to desks on tum_desk more than they found the sample's couch.
+  int coarse_steps = 1;
+  float shift_fraction = 0.0f;
+  float min_shift = 0.08f;
+  int coarse_points = 64;       // shape points per pose in the coarse search
+  int refined_poses = 3;        // best coarse poses refined
+  float fine_yaw = 0.15f;       // refinement steps (rad, m)
+  float fine_shift = 0.04f;
+  int max_points = 800;         // shape points per pose when refining
+  // Depth agreement: margin + 2 sigma(z), sigma the Kinect's axial noise at depth z (Nguyen,
+  // Izadi and Lovell, "Modeling Kinect sensor noise for improved 3D reconstruction and
+  // tracking", 3DIMPVT 2012): 0.0012 + 0.0019 (z - 0.4)^2 m.
+  float margin = 0.03f;
+  size_t max_scene_points = 150'000;  // the scene is thinned to this many points by stride
+};
+
+// The scene as verification reads it: points relative to the sensor, in the gravity frame.
+struct VerificationScene {
+  std::vector<Eigen::Vector3f> points;
+  Eigen::Vector3f origin = Eigen::Vector3f::Zero();  // the sensor, scene coordinates
+  Eigen::Matrix3f to_gravity = Eigen::Matrix3f::Identity();
+  std::optional<float> floor_z;  // the floor's z relative to the sensor, gravity frame
+};
+
+VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
+                                        const VerificationParams& params = {});
+
+// Whether `category` keeps training shapes to verify with.
+bool hasShapes(const CategoryModel& category);
+
+// The best pose of the category's shapes at `hypothesis` (its upright box gives the heading to
+// start from and, without a floor, the bottom), or nothing when the hypothesis cannot be looked
+// at: the sensor inside it, or too few scene points around it. Surface in `claimed` (cubes of 5 cm
+// in the gravity frame relative to the sensor) was explained by a better hypothesis and counts
+// neither way; the cubes the best pose explains go to `explained`.
+std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
+                                   const Hypothesis& hypothesis, const VerificationParams& params = {},
+                                   const std::unordered_set<uint64_t>* claimed = nullptr,
+                                   std::unordered_set<uint64_t>* explained = nullptr);
+
+// Sets each hypothesis' verification and puts its box on the best pose's shape, most confident
+// first, so that of two hypotheses of a category on one surface only the better is credited with
+// it (as the global verification of Aldoma et al. does with its multiple-assignment term). Sorts
+// `hypotheses` by confidence. Hypotheses of categories without shapes are left as they are.
+void verifyHypotheses(const VerificationScene& scene, const Model& model, std::vector<Hypothesis>& hypotheses,
+                      const VerificationParams& params = {}, const ShouldStop& should_stop = {});
+
+}  // namespace ism
