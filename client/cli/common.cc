@@ -125,6 +125,7 @@ void RecognitionFlags::add(CLI::App* app) {
       ->check(CLI::Range(0.0f, 0.99f));
   app->add_flag("--keep-overlaps", keep_overlaps,
                 "default preset: every confident peak, not one answer per object");
+  app->add_flag("--no-verify", no_verify, "default preset: do not check hypotheses against the scene's depth");
   app->add_option_function<std::string>(
          "--up",
          [this](const std::string& text) {
@@ -160,6 +161,7 @@ v1::RecognitionOptions RecognitionFlags::build() const {
   out.set_preset(wire::toProto(preset));
   if (!std::isnan(min_confidence)) out.set_min_confidence(min_confidence);
   if (keep_overlaps) out.set_one_answer_per_object(false);
+  if (no_verify) out.set_verify(false);
   return out;
 }
 

@@ -55,6 +55,7 @@ struct RecognitionFlags {
   RecognitionPreset preset = RecognitionPreset::kDefault;
   float min_confidence = NAN;  // NaN: the server's default
   bool keep_overlaps = false;
+  bool no_verify = false;
   std::optional<Eigen::Vector3f> up;  // of every scene sent
   DepthIntrinsics intrinsics;  // of depth PNGs
 

@@ -126,12 +126,14 @@ void answerOptionsFromProto(const v1::RecognitionOptions& in, RecognitionOptions
     out->min_confidence = RecognitionOptions{}.min_confidence;
   }
   out->one_answer_per_object = in.has_one_answer_per_object() ? in.one_answer_per_object() : true;
+  out->verify = in.has_verify() ? in.verify() : true;
 }
 
 void answerOptionsToProto(const RecognitionOptions& in, v1::RecognitionOptions* out) {
   out->set_preset(toProto(in.preset));
   out->set_min_confidence(in.min_confidence);
   out->set_one_answer_per_object(in.one_answer_per_object);
+  out->set_verify(in.verify);
 }
 
 void toProto(const Gravity& gravity, v1::Gravity* out) {
@@ -175,6 +177,17 @@ void resultToProto(const RecognitionResult& result, v1::RecognitionResult* out) 
       ap->set_confidence(a.confidence);
     }
     hp->set_upright_box(h.upright_box);
+    if (h.verification) {
+      const Verification& v = *h.verification;
+      auto* vp = hp->mutable_verification();
+      vp->set_fit(v.fit());
+      vp->set_seen(static_cast<uint32_t>(v.seen));
+      vp->set_consistent(static_cast<uint32_t>(v.consistent));
+      vp->set_claimed(static_cast<uint32_t>(v.claimed));
+      vp->set_training_object(v.object);
+      vp->set_yaw(v.yaw);
+      toProto(v.center, vp->mutable_center());
+    }
   }
   if (result.gravity) toProto(*result.gravity, out->mutable_gravity());
   for (const auto& [stage, ms] : result.timings.stages) {
@@ -206,6 +219,17 @@ RecognitionResult resultFromProto(const v1::RecognitionResult& in) {
     hypothesis.confidence = h.confidence();
     for (const auto& a : h.alternatives()) hypothesis.alternatives.push_back({a.category(), a.confidence()});
     hypothesis.upright_box = h.upright_box();
+    if (h.has_verification()) {
+      const auto& vp = h.verification();
+      Verification v;
+      v.seen = static_cast<int>(vp.seen());
+      v.consistent = static_cast<int>(vp.consistent());
+      v.claimed = static_cast<int>(vp.claimed());
+      v.object = vp.training_object();
+      v.yaw = vp.yaw();
+      v.center = fromProto(vp.center());
+      hypothesis.verification = v;
+    }
   }
   if (in.has_gravity()) out.gravity = gravityFromProto(in.gravity());
   for (const auto& t : in.timings()) out.timings.add(t.stage(), t.ms());

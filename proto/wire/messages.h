@@ -34,7 +34,7 @@ v1::UpSource toProto(UpSource source);
 std::optional<UpSource> upSourceFromProto(int value);  // nullopt for UNSPECIFIED and unknown numbers
 
 // The options that pick what recognition answers (preset, min_confidence,
-// one_answer_per_object), with the defaults service.proto documents for unset fields. Throws
+// one_answer_per_object, verify), with the defaults service.proto documents for unset fields. Throws
 // kInvalidInput naming the field for an unknown preset or a min_confidence outside [0, 0.99].
 void answerOptionsFromProto(const v1::RecognitionOptions& in, RecognitionOptions* out);
 // Sets every one of them, so that the receiver need not know this side's defaults.

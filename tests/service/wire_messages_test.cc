@@ -27,6 +27,14 @@ Hypothesis sampleHypothesis() {
   h.support_centroid = {0.9f, -2.1f, 0.6f};
   h.alternatives = {{"office_chair", 0.5f}, {"couch", 0.125f}};
   h.support_keypoints = {{0.1f, 0.2f, 0.3f}};
+  Verification v;
+  v.seen = 300;
+  v.consistent = 270;
+  v.claimed = 4;
+  v.object = 2;
+  v.yaw = 0.5f;
+  v.center = {1.01f, -2.0f, 0.45f};
+  h.verification = v;
   return h;
 }
 
@@ -46,6 +54,7 @@ TEST(WireMessages, ResultsRoundTripWithConfidenceAlternativesAndGravity) {
   result.hypotheses[1].category = "dining_table";
   result.hypotheses[1].upright_box = false;
   result.hypotheses[1].alternatives.clear();
+  result.hypotheses[1].verification.reset();
   Gravity gravity;
   gravity.up = Eigen::Vector3f(0.0f, 0.6f, 0.8f);
   gravity.source = UpSource::kFloor;
@@ -65,6 +74,9 @@ TEST(WireMessages, ResultsRoundTripWithConfidenceAlternativesAndGravity) {
   EXPECT_TRUE(message.hypotheses(0).upright_box());
   ASSERT_EQ(message.hypotheses(0).alternatives_size(), 2);
   EXPECT_EQ(message.hypotheses(0).alternatives(1).category(), "couch");
+  EXPECT_FLOAT_EQ(message.hypotheses(0).verification().fit(), (270.0f + 10) / (300 + 20));
+  EXPECT_EQ(message.hypotheses(0).verification().training_object(), 2);
+  EXPECT_FALSE(message.hypotheses(1).has_verification());
   EXPECT_EQ(message.gravity().source(), v1::UP_SOURCE_FLOOR);
   EXPECT_TRUE(message.gravity().has_floor_level());
 
@@ -86,6 +98,15 @@ TEST(WireMessages, ResultsRoundTripWithConfidenceAlternativesAndGravity) {
       EXPECT_EQ(a.alternatives[k].confidence, e.alternatives[k].confidence);
     }
     EXPECT_EQ(a.support_keypoints, e.support_keypoints);
+    ASSERT_EQ(a.verification.has_value(), e.verification.has_value());
+    if (e.verification) {
+      EXPECT_EQ(a.verification->seen, e.verification->seen);
+      EXPECT_EQ(a.verification->consistent, e.verification->consistent);
+      EXPECT_EQ(a.verification->claimed, e.verification->claimed);
+      EXPECT_EQ(a.verification->object, e.verification->object);
+      EXPECT_EQ(a.verification->yaw, e.verification->yaw);
+      EXPECT_EQ(a.verification->center, e.verification->center);
+    }
   }
   ASSERT_TRUE(back.gravity);
   EXPECT_EQ(back.gravity->up, gravity.up);
@@ -126,6 +147,7 @@ TEST(WireMessages, AnswerOptionsRoundTripAndUnsetMeansTheDefaults) {
   sent.preset = RecognitionPreset::kSeed;
   sent.min_confidence = 0.25f;
   sent.one_answer_per_object = false;
+  sent.verify = false;
   v1::RecognitionOptions message;
   wire::answerOptionsToProto(sent, &message);
   EXPECT_EQ(message.preset(), v1::RECOGNITION_PRESET_SEED);
@@ -134,6 +156,7 @@ TEST(WireMessages, AnswerOptionsRoundTripAndUnsetMeansTheDefaults) {
   EXPECT_EQ(got.preset, RecognitionPreset::kSeed);
   EXPECT_EQ(got.min_confidence, 0.25f);
   EXPECT_FALSE(got.one_answer_per_object);
+  EXPECT_FALSE(got.verify);
 
   // Unset fields are the defaults service.proto documents, whatever the target held before.
   RecognitionOptions defaults;
@@ -142,6 +165,7 @@ TEST(WireMessages, AnswerOptionsRoundTripAndUnsetMeansTheDefaults) {
   EXPECT_EQ(got.min_confidence, 0.5f);
   EXPECT_EQ(got.min_confidence, defaults.min_confidence);
   EXPECT_TRUE(got.one_answer_per_object);
+  EXPECT_TRUE(got.verify);
 
   // The bounds themselves are allowed.
   for (const float bound : {0.0f, 0.99f}) {

@@ -140,11 +140,12 @@ def recognition_options(model: str = "", categories: Sequence[str] = (), min_sco
                         k: int = 0, cutoff: float = 0.0, weighting: Optional[str] = None,
                         return_keypoints: bool = False, box_selection: Optional[bool] = None,
                         preset: Optional[str] = None, min_confidence: Optional[float] = None,
-                        one_answer_per_object: Optional[bool] = None):
+                        one_answer_per_object: Optional[bool] = None, verify: Optional[bool] = None):
     """ism.v1.RecognitionOptions; strategy names are lower case (codebook 'global'|'separated',
     activation 'knn'|'cutoff', weighting 'categorization'|'localization'|'activation').
     preset 'default' (calibrated confidence, one answer per object) or 'seed' (the seed's
-    pipeline); min_confidence (default preset, in [0, 0.99]; the server's default is 0.5). None
+    pipeline); min_confidence (default preset, in [0, 0.99]; the server's default is 0.5); verify
+    (default preset: check hypotheses against the scene's depth; the server's default is True). None
     leaves a field to the server's default."""
     options = service_pb2.RecognitionOptions(
         model=model, categories=list(categories), max_hypotheses=max_hypotheses, return_keypoints=return_keypoints,
@@ -160,6 +161,8 @@ def recognition_options(model: str = "", categories: Sequence[str] = (), min_sco
         options.min_confidence = min_confidence
     if one_answer_per_object is not None:
         options.one_answer_per_object = one_answer_per_object
+    if verify is not None:
+        options.verify = verify
     return options
 
 
