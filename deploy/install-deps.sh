@@ -3,13 +3,14 @@
 # Used by the README's commands, by .ci/run and by the container image.
 #   deploy/install-deps.sh           build + runtime + test and CI dependencies
 #   deploy/install-deps.sh --build   only what compiling the binaries needs (the image's build stage)
-#   deploy/install-deps.sh --runtime only the shared libraries the binaries load
+#   deploy/install-deps.sh --runtime only the shared libraries ism-server loads (the image's runtime stage)
 set -euo pipefail
 
-runtime=(libpcl-common1.13 libpcl-io1.13 libpcl-features1.13 libpcl-filters1.13 libpcl-surface1.13
-         libpcl-search1.13 libpcl-kdtree1.13 libgrpc++1.51 libgrpc29 libprotobuf32 libspdlog1.10
-         libpng16-16 zlib1g libflann1.9 libopenni2-0 libprometheus-cpp-core1.0 libprometheus-cpp-pull1.0
-         libgomp1 ca-certificates)
+# ism-server's own libraries: no pcl_io, pcl_surface or pcl_features (they bring VTK, Qt and OpenNI,
+# most of a 1 GB image; core/CMakeLists.txt keeps them out of the server's link).
+runtime=(libpcl-common1.13 libpcl-search1.13 libpcl-kdtree1.13 libflann1.9 libgomp1
+         libgrpc++1.51 libgrpc29 libprotobuf32 libssl3 libspdlog1.10 libpng16-16 zlib1g
+         libprometheus-cpp-core1.0 libprometheus-cpp-pull1.0)
 build=(build-essential cmake ninja-build pkg-config git
        libpcl-dev libeigen3-dev libflann-dev libpng-dev zlib1g-dev
        libgrpc++-dev libgrpc-dev protobuf-compiler-grpc libprotobuf-dev protobuf-compiler

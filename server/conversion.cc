@@ -13,7 +13,7 @@
 #include <vector>
 
 #include "core/common/error.h"
-#include "core/io/cloud_io.h"
+#include "core/io/scene_bytes.h"
 #include "proto/wire/enums.h"
 #include "proto/wire/messages.h"
 

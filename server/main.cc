@@ -9,8 +9,10 @@
 #include <csignal>
 #include <cstdlib>
 #include <cstring>
+#include <iostream>
 #include <memory>
 
+#include "server/health_probe.h"
 #include "server/options.h"
 #include "server/server.h"
 
@@ -46,6 +48,9 @@ int main(int argc, char** argv) {
   int exit_code = 0;
   const auto options = ism::server::parseServerOptions(argc, argv, &exit_code);
   if (!options) return exit_code;
+  if (options->health_check) {
+    return ism::server::runHealthCheck(*options, std::chrono::seconds(3), std::cout, std::cerr);
+  }
   setUpLogging(options->log_level);
 
   // Reflection is the binary's, not the server library's: tests link the library with their own

@@ -67,6 +67,7 @@ Metrics::Metrics(const std::string& listen)
                                     "machine's (give another, or an empty one to serve no metrics)");
   }
   exposer_->RegisterCollectable(registry_);
+  exposer_->RegisterCollectable(process_);
 }
 
 void Metrics::recordRequest(const std::string& rpc, grpc::StatusCode code, double seconds) {

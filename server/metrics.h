@@ -1,7 +1,8 @@
 #pragma once
 // Prometheus metrics: requests by RPC and status code, latency per RPC and per pipeline
-// stage, active streams, frames dropped by LATEST_FRAME_WINS, loaded models. Served over HTTP
-// at /metrics when a listen address is given.
+// stage, active streams, frames dropped by LATEST_FRAME_WINS, loaded models, and the process's
+// memory, CPU time and open files. Served over HTTP at /metrics when a listen address is given.
+// deploy/grafana/ism-dashboard.json charts them.
 #include <grpcpp/support/status.h>
 #include <prometheus/counter.h>
 #include <prometheus/exposer.h>
@@ -13,6 +14,7 @@
 #include <string>
 
 #include "core/common/types.h"
+#include "server/process_metrics.h"
 
 namespace ism::server {
 
@@ -33,6 +35,7 @@ class Metrics {
 
  private:
   std::shared_ptr<prometheus::Registry> registry_ = std::make_shared<prometheus::Registry>();
+  std::shared_ptr<ProcessMetrics> process_ = std::make_shared<ProcessMetrics>();
   std::unique_ptr<prometheus::Exposer> exposer_;
   prometheus::Family<prometheus::Counter>& requests_;
   prometheus::Family<prometheus::Histogram>& request_seconds_;

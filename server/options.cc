@@ -114,6 +114,9 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
                  "concurrent StreamFrames calls per client (its token, else its host); 0: no limit")
       ->envname("ISM_MAX_STREAMS_PER_CLIENT")
       ->capture_default_str();
+  // No environment variable: one set for a container would turn its server into a probe.
+  app.add_flag("--health-check", o.health_check,
+               "ask the server at --listen (with the --tls-* files) for its health and exit: 0 when SERVING");
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -27,6 +27,8 @@ struct ServerOptions {
   std::string tls_cert, tls_key, tls_client_ca;
   std::string token_file, admin_token_file;
   size_t max_streams_per_client = 0;  // 0: no limit
+  // Ask the server these options describe for its health and exit (the image's HEALTHCHECK).
+  bool health_check = false;
 };
 
 // `metrics_listen` with a leading ':' completed by the host of `grpc_listen` (127.0.0.1 for a

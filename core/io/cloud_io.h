@@ -1,40 +1,19 @@
 #pragma once
-// Reading scenes: PCD and PLY clouds (organized or not, with or without colour) and 16-bit
-// depth images with intrinsics. NaN/Inf points are dropped. Every failure throws ism::Error
-// whose message names the file (or "request") and the problem.
-#include <cstdint>
+// Reading and writing cloud files: PCD and PLY (organized or not, with or without colour).
+// Reading PLY and writing PCD go through pcl_io (library ism_io); the in-memory decoders of
+// scene_bytes.h (library ism_io_bytes) come with this header, so a tool reads any input from one
+// include. NaN/Inf points are dropped. Every failure throws ism::Error whose message names the
+// file and the problem.
 #include <string>
+#include <vector>
 
 #include "core/common/types.h"
+#include "core/io/scene_bytes.h"
 
 namespace ism {
 
-struct DepthIntrinsics : PinholeIntrinsics {
-  // Raw depth units per metre: 1000 for OpenNI millimetres, 5000 for TUM RGB-D PNGs.
-  float depth_scale = 1000.0f;
-};
-
 // .pcd or .ply, chosen by extension (case-insensitive).
 Scene loadCloudFile(const std::string& path);
-
-// Raw row-major uint16 depth (0 = no measurement) -> organized scene in the camera frame
-// (x right, y down, z forward), sensor at the origin.
-Scene depthToScene(const uint16_t* depth, int width, int height, const DepthIntrinsics& intrinsics,
-                   const std::string& source = "depth image");
-
-// A 16-bit single-channel PNG (file or bytes in memory) -> scene, as depthToScene.
-Scene loadDepthPng(const std::string& path, const DepthIntrinsics& intrinsics);
-// `should_stop` as decodeDepthPng16 uses it: long decodes end when the caller gives up.
-Scene decodeDepthPng(const std::string& png_bytes, const DepthIntrinsics& intrinsics,
-                     const std::string& source = "depth PNG", const ShouldStop& should_stop = {});
-
-// Packed float32 xyz (and optional packed uint8 rgb) as sent over the wire. width*height must
-// equal the point count when organized (height > 1), else pass width = count, height = 1. `xyz`
-// need not be aligned (protobuf's bytes fields are not): it is read through memcpy, so callers
-// need no aligned copy. With `reuse`, its cloud and pixel indices are cleared and refilled, so
-// that a server worker decoding frame after frame keeps their allocations.
-Scene sceneFromPacked(const void* xyz, size_t count, const uint8_t* rgb, int width, int height,
-                      const std::string& source = "request", Scene* reuse = nullptr);
 
 // Writing, for debugging and for the shipped sample scene. savePcd writes binary PCD with the
 // sensor pose as VIEWPOINT; an organized scene is written organized (NaN where no point was

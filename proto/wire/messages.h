@@ -5,7 +5,7 @@
 #include <optional>
 #include <string>
 
-#include "core/io/cloud_io.h"
+#include "core/io/scene_bytes.h"
 #include "core/recognition/recognizer.h"
 #include "ism/v1/service.pb.h"
 

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <iostream>
 #include <limits>
 #include <numeric>
@@ -15,6 +16,7 @@
 #include <omp.h>
 #endif
 
+#include "core/common/cpu_features.h"
 #include "core/common/error.h"
 
 namespace ism {
@@ -290,6 +292,23 @@ TEST(DistanceKernel, AutoRunsTheWidestTheCpuHas) {
   EXPECT_NE(widest, DistanceKernel::kAuto);
   EXPECT_EQ(Codebook::kernelFor(DistanceKernel::kAvx512), widest);
   std::cout << "[          ] widest distance kernel: " << name(widest) << "\n";
+}
+
+TEST(DistanceKernel, ThePortablePathCanBeForced) {
+  const CpuFeatures all{true, true};
+  EXPECT_FALSE(applyPortableOverride(all, "1").avx2);
+  EXPECT_FALSE(applyPortableOverride(all, "1").avx512f);
+  EXPECT_TRUE(applyPortableOverride(all, nullptr).avx512f);
+  EXPECT_TRUE(applyPortableOverride(all, "0").avx2);
+  EXPECT_TRUE(applyPortableOverride(all, "").avx2);
+  EXPECT_TRUE(applyPortableOverride(all, "yes").avx2);  // not 1 or 0: said on stderr, ignored
+  // Under ctest's portable.* runs the variable is set: nothing wider than the baseline may run.
+  const char* forced = std::getenv("ISM_PORTABLE_KERNELS");
+  if (forced != nullptr && std::string(forced) == "1") {
+    EXPECT_FALSE(cpuHasAvx2());
+    EXPECT_FALSE(cpuHasAvx512f());
+    EXPECT_EQ(Codebook::kernelFor(DistanceKernel::kAuto), DistanceKernel::kBaseline);
+  }
 }
 
 // Checks activations of `a` against the reference: grouped by keypoint in order, each

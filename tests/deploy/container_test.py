@@ -1,7 +1,9 @@
 """Builds deploy/Containerfile with podman, runs the image as deploy/compose.yaml and the
 Kubernetes Deployment do (non-root, read-only root filesystem) and calls it from the C++
-ism-client on 127.0.0.1: health, one recognition, and a clean SIGTERM drain. Slow (the image
-compiles the project), so ctest labels it `container`.
+ism-client on 127.0.0.1: health, one recognition, the image's own HEALTHCHECK, and a clean
+SIGTERM drain. It also measures what the image adds to its base, which a fleet pulls onto every
+robot: at most MAX_ABOVE_BASE_MB. Slow (the image compiles ism-server), so ctest labels it
+`container`.
 
 Three adjustments for this CI sandbox, none of which the image needs (see
 ../shared/docs/CONTAINERS.md when present): the base image is made locally with debootstrap
@@ -24,6 +26,9 @@ SOURCE = os.environ.get("ISM_SOURCE_DIR", os.path.join(HERE, "..", ".."))
 CLIENT = os.environ.get("ISM_CLIENT_BIN", "")
 MODEL_DIR = os.environ.get("ISM_TEST_MODEL_DIR", "")
 IMAGE = "localhost/ism-server:test"
+BASE = "docker.io/library/debian:bookworm-slim"
+# Issue 18's budget for the layers above debian:bookworm-slim, uncompressed.
+MAX_ABOVE_BASE_MB = 120
 PODMAN_RUN = ["podman", "--runtime", os.path.join(HERE, "runc-no-nproc")]
 
 
@@ -49,7 +54,10 @@ class ContainerTest(unittest.TestCase):
             raise RuntimeError(f"podman build failed:\n{build.stdout[-6000:]}{build.stderr[-6000:]}")
         inspect = run(["podman", "image", "inspect", "--format", "{{.Size}} {{.Config.User}}", IMAGE], timeout=60)
         size, cls.user = inspect.stdout.split()
-        print(f"image {IMAGE}: {int(size) / 1e6:.0f} MB, built in {cls.build_seconds:.0f} s", flush=True)
+        base_size = run(["podman", "image", "inspect", "--format", "{{.Size}}", BASE], timeout=60).stdout
+        cls.size_mb, cls.above_base_mb = int(size) / 1e6, (int(size) - int(base_size)) / 1e6
+        print(f"image {IMAGE}: {cls.size_mb:.0f} MB, {cls.above_base_mb:.1f} MB above {BASE}, "
+              f"built in {cls.build_seconds:.0f} s", flush=True)
 
         cls.port, cls.metrics_port = free_port(), free_port()
         cls.name = f"ism-container-test-{os.getpid()}"
@@ -81,6 +89,10 @@ class ContainerTest(unittest.TestCase):
     def logs(cls):
         result = run(["podman", "logs", cls.name], timeout=60)
         return result.stdout + result.stderr
+
+    def test_0_layers_above_the_base_fit_the_budget(self):
+        self.assertLessEqual(self.above_base_mb, MAX_ABOVE_BASE_MB,
+                             "the runtime stage grew: see deploy/install-deps.sh --runtime and deploy/Containerfile")
 
     def test_1_image_runs_as_non_root(self):
         self.assertEqual(self.user, "10001")

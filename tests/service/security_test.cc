@@ -33,6 +33,10 @@ class SecurityTest : public ::testing::Test {
     makeCertificate("server", "ca", "subjectAltName=IP:127.0.0.1,DNS:localhost\nextendedKeyUsage=serverAuth");
     makeCertificate("client", "ca", "extendedKeyUsage=clientAuth");
     makeCertificate("rogue-client", "rogue-ca", "extendedKeyUsage=clientAuth");
+    // A server certificate that may also identify a client: what `ism-server --health-check`
+    // presents to its own server under mTLS.
+    makeCertificate("server-and-client", "ca",
+                    "subjectAltName=IP:127.0.0.1,DNS:localhost\nextendedKeyUsage=serverAuth,clientAuth");
     writeSecret("tokens", std::string("# user tokens\n\n  ") + kUserToken + "  \n");
     writeSecret("admin-tokens", std::string(kAdminToken) + "\n");
   }
@@ -328,6 +332,31 @@ TEST_F(SecurityTest, TokenFilesAndCertificatesAreChecked) {
   EXPECT_TRUE(server::isLoopbackAddress("unix:/run/ism.sock"));
   EXPECT_FALSE(server::isLoopbackAddress("0.0.0.0:50051"));
   EXPECT_FALSE(server::isLoopbackAddress("[::]:50051"));
+}
+
+// The image's HEALTHCHECK under TLS: the probe speaks TLS when the server's options name a
+// certificate, and with mTLS presents the server's own certificate.
+TEST_F(SecurityTest, HealthCheckModeSpeaksTlsAndMutualTls) {
+  const std::string probe = std::string(ISM_SERVER_BINARY) + " --health-check";
+  int code = 0;
+  {
+    ServerProcess server(secureFlags(), tls("ca"));
+    const std::string tls_flags = " --tls-cert " + path("server.crt") + " --tls-key " + path("server.key");
+    std::string out = runCommand(probe + " --listen " + server.address() + tls_flags, &code);
+    EXPECT_EQ(code, 0) << out;
+    EXPECT_EQ(out, "SERVING\n");
+    out = runCommand(probe + " --listen " + server.address(), &code);
+    EXPECT_EQ(code, 1) << "plain text against TLS must fail: " << out;
+    EXPECT_NE(out.find("failed: UNAVAILABLE"), std::string::npos) << out;
+  }
+  const std::vector<std::string> mutual{"--tls-cert", path("server-and-client.crt"), "--tls-key",
+                                        path("server-and-client.key"), "--tls-client-ca", path("ca.crt")};
+  ServerProcess server(mutual, tls("ca", "client"));
+  std::string flags;
+  for (const auto& flag : mutual) flags += " " + flag;
+  const std::string out = runCommand(probe + " --listen " + server.address() + flags, &code);
+  EXPECT_EQ(code, 0) << out;
+  EXPECT_EQ(out, "SERVING\n");
 }
 
 }  // namespace
