@@ -123,7 +123,7 @@ TEST_F(AnswersTest, DefaultPresetAnswersEachObjectOnceWithAConfidence) {
     EXPECT_LE(h.confidence(), 1.0f) << i;
     if (i > 0) EXPECT_LE(h.confidence(), result.hypotheses(i - 1).confidence()) << "not best first at " << i;
     EXPECT_TRUE(h.upright_box()) << i;  // the tiny model's votes are upright, so are its boxes
-    // Its training shapes verify every hypothesis against the scene's depth.
+    // The test model keeps training shapes, so every hypothesis is verified against the scene.
     ASSERT_TRUE(h.has_verification()) << i;
     EXPECT_GT(h.verification().seen(), 0u) << i;
     EXPECT_GT(h.verification().fit(), 0.0f) << i;
