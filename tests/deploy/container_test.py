@@ -25,7 +25,9 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 SOURCE = os.environ.get("ISM_SOURCE_DIR", os.path.join(HERE, "..", ".."))
 CLIENT = os.environ.get("ISM_CLIENT_BIN", "")
 MODEL_DIR = os.environ.get("ISM_TEST_MODEL_DIR", "")
-IMAGE = "localhost/ism-server:test"
+# A tag of its own per run, so that two checkouts testing on one machine never run each other's
+# image; removed afterwards (the layers stay cached for the next build).
+IMAGE = f"localhost/ism-server:test-{os.getpid()}"
 BASE = "docker.io/library/debian:bookworm-slim"
 # Issue 18's budget for the layers above debian:bookworm-slim, uncompressed.
 MAX_ABOVE_BASE_MB = 120
@@ -84,6 +86,7 @@ class ContainerTest(unittest.TestCase):
     def tearDownClass(cls):
         if getattr(cls, "name", None):
             run(PODMAN_RUN + ["rm", "-f", "-t", "0", cls.name], timeout=120)
+        run(["podman", "rmi", "--ignore", IMAGE], timeout=120)
 
     @classmethod
     def logs(cls):
