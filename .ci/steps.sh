@@ -61,7 +61,8 @@ tsan_duplicates='^(Conversion|WireMessages|UntrustedText|UntrustedTextServiceTes
 # every test process started training it again. Needs main_build_step first.
 seed_test_model() {  # BUILD_DIR
   local trained
-  trained=$(build/tests/clients/ism_test_model) || return
+  # It prints the model's folder last (first, when it trains, how long that took).
+  trained=$(build/tests/clients/ism_test_model | tail -n 1) || return
   mkdir -p "$1/tests/service/cache/models"
   cp "$trained/default.ismm" "$1/tests/service/cache/models/default.ismm"
 }
