@@ -84,7 +84,10 @@ int runRecognize(const Connection& connection, const std::vector<std::string>& f
     if (!picture.empty()) {
       const std::string path = picturePath(picture, file, files.size());
       try {
-        ism::savePicture(scene.scene, ism::wire::resultFromProto(response.result()).hypotheses, path, scene.camera);
+        const ism::RecognitionResult result = ism::wire::resultFromProto(response.result());
+        ism::PictureParams camera = scene.camera;
+        if (result.gravity) camera.up = result.gravity->up;
+        ism::savePicture(scene.scene, result.hypotheses, path, camera);
       } catch (const std::exception& e) {
         std::cerr << "error: " << e.what() << "\n";
         if (exit_code == 0) exit_code = kLocalFailure;

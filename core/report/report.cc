@@ -144,16 +144,74 @@ Eigen::Vector3i categoryColor(const std::string& category) {
   return palette[hash % (sizeof palette / sizeof palette[0])];
 }
 
+namespace {
+
+// World-to-camera rotation of the picture of a cloud without an image grid: optical z along the
+// points' mean direction from the sensor origin, y down against `up` (else against the sensor
+// orientation's up, its -y).
+Eigen::Matrix3f cloudViewRotation(const Scene& scene, const std::optional<Eigen::Vector3f>& up_hint) {
+  const Eigen::Matrix3f sensor = scene.sensor_orientation.normalized().toRotationMatrix();
+  Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+  for (const auto& p : scene.cloud->points) {
+    const Eigen::Vector3f d = p.getVector3fMap() - scene.sensor_origin;
+    if (d.norm() > 1e-6f) mean += d.normalized();
+  }
+  Eigen::Vector3f forward = mean.norm() > 1e-3f * scene.cloud->size() ? mean.normalized() : sensor.col(2);
+  Eigen::Vector3f up = up_hint && up_hint->norm() > 0 ? up_hint->normalized() : Eigen::Vector3f(-sensor.col(1));
+  Eigen::Vector3f down = -(up - up.dot(forward) * forward);
+  if (down.norm() < 1e-3f) down = forward.unitOrthogonal();  // looking straight up or down
+  down.normalize();
+  Eigen::Matrix3f camera_to_world;
+  camera_to_world.col(0) = down.cross(forward);
+  camera_to_world.col(1) = down;
+  camera_to_world.col(2) = forward;
+  return camera_to_world.transpose();
+}
+
+// params' lens, its focal length shrunk (never grown) until the 1st to 99th percentiles of the
+// points' image coordinates fit in the picture.
+PinholeIntrinsics fittedLens(const Scene& scene, const Eigen::Matrix3f& world_to_camera, const PictureParams& params) {
+  std::vector<float> xs, ys;
+  for (const auto& p : scene.cloud->points) {
+    const Eigen::Vector3f c = world_to_camera * (p.getVector3fMap() - scene.sensor_origin);
+    if (!(c.z() > 0.05f)) continue;
+    xs.push_back(c.x() / c.z());
+    ys.push_back(c.y() / c.z());
+  }
+  PinholeIntrinsics lens = params;
+  if (xs.size() < 10) return lens;
+  const auto halfExtent = [](std::vector<float>& v) {
+    const size_t lo = v.size() / 100, hi = v.size() - 1 - v.size() / 100;
+    std::nth_element(v.begin(), v.begin() + lo, v.end());
+    const float low = v[lo];
+    std::nth_element(v.begin(), v.begin() + hi, v.end());
+    return std::max(std::abs(low), std::abs(v[hi]));
+  };
+  const float fx = 0.5f * params.width / std::max(halfExtent(xs), 1e-3f);
+  const float fy = 0.5f * params.height / std::max(halfExtent(ys), 1e-3f);
+  const float f = std::min({fx, fy, static_cast<float>(params.fx)});
+  lens.fx = lens.fy = f;
+  lens.cx = 0.5f * params.width;
+  lens.cy = 0.5f * params.height;
+  return lens;
+}
+
+}  // namespace
+
 std::string renderPicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses, const PictureParams& params) {
   if (params.width <= 0 || params.height <= 0 || params.width > 16384 || params.height > 16384) {
     throw Error(ErrorCode::kInvalidInput, "picture size " + std::to_string(params.width) + "x" +
                                               std::to_string(params.height) + " is out of range");
   }
   Canvas canvas(params.width, params.height);
-  const Eigen::Matrix3f world_to_camera = scene.sensor_orientation.normalized().toRotationMatrix().transpose();
+  const Eigen::Matrix3f world_to_camera =
+      scene.image_width > 0 ? Eigen::Matrix3f(scene.sensor_orientation.normalized().toRotationMatrix().transpose())
+                            : cloudViewRotation(scene, params.up);
   const auto toCamera = [&](const Eigen::Vector3f& p) { return Eigen::Vector3f(world_to_camera * (p - scene.sensor_origin)); };
+  PinholeIntrinsics lens = params;
+  if (scene.image_width == 0) lens = fittedLens(scene, world_to_camera, params);
   const auto project = [&](const Eigen::Vector3f& c) {
-    return Eigen::Vector2f(params.fx * c.x() / c.z() + params.cx, params.fy * c.y() / c.z() + params.cy);
+    return Eigen::Vector2f(lens.fx * c.x() / c.z() + lens.cx, lens.fy * c.y() / c.z() + lens.cy);
   };
 
   std::vector<Eigen::Vector3f> camera_points;
@@ -166,8 +224,14 @@ std::string renderPicture(const Scene& scene, const std::vector<Hypothesis>& hyp
       far = std::max(far, camera_points.back().z());
     }
   }
-  // An image-like scene fills the frame at one pixel per point; unorganised clouds need bigger dots.
-  const int dot = scene.image_width > 0 ? 1 : 2;
+  // An image-like scene fills the frame at one pixel per point; an unorganised cloud gets dots as
+  // large as the picture's area shared among its points (2-6 px), so a sparse sample still shows
+  // surfaces.
+  int dot = 1;
+  if (scene.image_width == 0) {
+    const double pixels_per_point = static_cast<double>(params.width) * params.height / std::max<size_t>(camera_points.size(), 1);
+    dot = std::clamp(static_cast<int>(std::lround(std::sqrt(pixels_per_point))), 2, 6);
+  }
   for (size_t i = 0; i < camera_points.size(); ++i) {
     const Eigen::Vector3f& c = camera_points[i];
     if (!(c.z() > 0)) continue;

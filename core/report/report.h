@@ -2,6 +2,7 @@
 // Presenting a recognition result: a text table, JSON, a picture of the scene from the sensor's
 // viewpoint with the hypotheses' boxes drawn, and a PLY of keypoints and votes for debugging.
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -19,9 +20,13 @@ nlohmann::json toJson(const Hypothesis& hypothesis);
 nlohmann::json toJson(const RecognitionResult& result);
 
 // The base is the sensor the picture is taken with: Kinect intrinsics by default, placed at the
-// scene's sensor pose (optical frame: x right, y down, z forward).
+// scene's sensor pose (optical frame: x right, y down, z forward). A cloud without an image grid
+// (a fused room, a point sample) has no such pose: it is seen from its sensor origin looking at
+// its points' mean direction, `up` (the recognised gravity, when known) up in the picture, with
+// the focal length widened until 98 % of the points are in the frame.
 struct PictureParams : CameraIntrinsics {
   int line_width = 2;
+  std::optional<Eigen::Vector3f> up;
 };
 
 // RGB colour of a category's boxes; stable across runs (derived from the name).

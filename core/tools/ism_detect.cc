@@ -117,6 +117,7 @@ int main(int argc, char** argv) {
           static_cast<ism::PinholeIntrinsics&>(pp) = intrinsics;
         }
         if (scene.image_width > 0) pp.width = scene.image_width, pp.height = scene.image_height;
+        if (result.gravity) pp.up = result.gravity->up;
         ism::savePicture(scene, result.hypotheses, picture, pp);
       }
       if (!debug_ply.empty()) ism::saveDebugPly(model, result, debug_ply);

@@ -1,6 +1,7 @@
 #include "core/report/report.h"
 
 #include <gtest/gtest.h>
+#include <png.h>
 
 #include <cstdio>
 #include <fstream>
@@ -89,6 +90,42 @@ TEST(Report, PictureIsAPngOfTheRequestedSizeWithTheBoxDrawn) {
   bytes << in.rdbuf();
   EXPECT_EQ(bytes.str(), png);
   std::remove(path.c_str());
+}
+
+// Grey level per pixel of a PNG made by renderPicture.
+std::vector<uint8_t> decodeGrey(const std::string& png, int& width, int& height) {
+  png_image image{};
+  image.version = PNG_IMAGE_VERSION;
+  EXPECT_TRUE(png_image_begin_read_from_memory(&image, png.data(), png.size()));
+  image.format = PNG_FORMAT_GRAY;
+  std::vector<uint8_t> grey(PNG_IMAGE_SIZE(image));
+  EXPECT_TRUE(png_image_finish_read(&image, nullptr, grey.data(), 0, nullptr));
+  width = static_cast<int>(image.width);
+  height = static_cast<int>(image.height);
+  return grey;
+}
+
+TEST(Report, CloudWithoutImageGridIsSeenAlongItsPointsUpUp) {
+  // A room sample in the SUN RGB-D convention: sensor at the origin looking along +y, z up. A wall
+  // 3 m ahead and a shelf high on it; drawn with the Kinect's optical frame (+z forward) the
+  // picture would be black.
+  Scene scene;
+  for (float x = -1.5f; x <= 1.5f; x += 0.02f)
+    for (float z = -1.2f; z <= 0.2f; z += 0.02f) scene.cloud->push_back(PointT(x, 3.0f, z, 0, 0, 0));
+  for (float x = -0.5f; x <= 0.5f; x += 0.01f)
+    for (float z = 0.8f; z <= 1.0f; z += 0.01f) scene.cloud->push_back(PointT(x, 2.8f, z, 0, 0, 0));
+  PictureParams params;
+  params.up = Eigen::Vector3f::UnitZ();
+  int width = 0, height = 0;
+  const std::vector<uint8_t> grey = decodeGrey(renderPicture(scene, {}, params), width, height);
+  ASSERT_EQ(width, 640);
+  ASSERT_EQ(height, 480);
+  int lit = 0, lit_top = 0;
+  for (int v = 0; v < height; ++v)
+    for (int u = 0; u < width; ++u)
+      if (grey[static_cast<size_t>(v * width + u)] > 0) ++lit, lit_top += v < height / 4;
+  EXPECT_GT(lit, width * height / 5) << "the wall fills much of the picture";
+  EXPECT_GT(lit_top, 0) << "the shelf, highest, is drawn at the top";
 }
 
 TEST(Report, DebugPlyHoldsKeypointsVotesAndCentres) {
