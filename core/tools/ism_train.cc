@@ -39,6 +39,18 @@ int main(int argc, char** argv) {
   app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(CLI::PositiveNumber);
   app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(CLI::PositiveNumber);
   app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
+  bool seed_front_end = false;
+  auto* seed_front_end_opt = app.add_flag("--seed-front-end", seed_front_end,
+               "the seed's scales (1 cm voxels, 3 cm normals, 8 cm SHOT) instead of the default 3 / 7.5 / 18 cm");
+  app.add_option("--leaf-size", params.front_end.downsample.leaf_size, "downsampling voxel edge (m)")
+      ->check(CLI::Range(0.002, 0.2))
+      ->excludes(seed_front_end_opt);
+  app.add_option("--normal-radius", params.front_end.normals.radius, "normal estimation radius (m)")
+      ->check(CLI::Range(0.005, 0.5))
+      ->excludes(seed_front_end_opt);
+  app.add_option("--shot-radius", params.front_end.shot.radius, "SHOT descriptor support radius (m)")
+      ->check(CLI::Range(0.02, 0.5))
+      ->excludes(seed_front_end_opt);
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.
@@ -73,6 +85,14 @@ int main(int argc, char** argv) {
   } catch (const CLI::ParseError& e) {
     app.exit(e);
     return 2;
+  }
+  if (seed_front_end) {
+    const ism::FrontEndParams seed;
+    params.front_end.downsample = seed.downsample;
+    params.front_end.smoothing.radius = seed.smoothing.radius;
+    params.front_end.normals = seed.normals;
+    params.front_end.keypoints.radius = seed.keypoints.radius;
+    params.front_end.shot = seed.shot;
   }
   if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
   if (!vote_frame.empty()) params.voting.frame = vote_frame == "lrf" ? ism::VoteFrame::kLrf : ism::VoteFrame::kUpright;

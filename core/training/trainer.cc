@@ -258,8 +258,19 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
 
 }  // namespace
 
+FrontEndParams defaultFrontEnd() {
+  FrontEndParams params;
+  params.downsample.leaf_size = kDefaultLeafSize;
+  params.smoothing.radius = 2.0f * kDefaultLeafSize;
+  params.normals.radius = 2.5f * kDefaultLeafSize;
+  params.keypoints.radius = 2.5f * kDefaultLeafSize;
+  params.shot.radius = 6.0f * kDefaultLeafSize;
+  return params;
+}
+
 TrainingParams seedTrainingParams() {
   TrainingParams params;
+  params.front_end = FrontEndParams{};  // the thesis's radii
   params.front_end.gravity.enabled = false;
   params.front_end.keypoints.unorganized = KeypointMethod::kBoundary;
   params.voting = VotingParams{VoteFrame::kLrf, 0.0f};

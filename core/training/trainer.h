@@ -27,8 +27,19 @@ struct CalibrationParams {
   uint32_t seed = 7;
 };
 
+// The project's front end, coarser than the seed's (1 cm voxels, 3 cm normals, 8 cm SHOT): the
+// clouds robots send are often sparser than a Kinect frame (a 50,000-point sample of a fused room
+// has its points 1.4-3.3 cm apart, a SHOT of 8 cm holds 8-36 of them), so descriptors are made
+// at a resolution every input reaches: voxels of kDefaultLeafSize, normals over 2.5 and SHOT over 6
+// of them (the ratios of the seed's radii to a finer leaf would starve the normals). Furniture's
+// parts span decimetres, so little is lost on Kinect frames. The scales were chosen on the
+// development scans in docs/EVALUATION.md's ablation (2, 2.5, 3, 3.5, 4 cm leaves).
+inline constexpr float kDefaultLeafSize = 0.03f;
+FrontEndParams defaultFrontEnd();
+
 struct TrainingParams {
-  FrontEndParams front_end;  // smoothing is stored for scenes; training scans are not smoothed
+  // defaultFrontEnd(); smoothing is stored for scenes; training scans are not smoothed
+  FrontEndParams front_end = defaultFrontEnd();
   // Upright votes with the height test: see VotingParams. The seed's: LRF votes, no heights.
   VotingParams voting{VoteFrame::kUpright, 0.1f};
   // Scans see the mesh standing on a floor, as a robot sees furniture: its legs end on the floor

@@ -17,8 +17,10 @@ mkdir -p "$work"
 manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
            --manifest-only)
 
-# Rows before the projector's shadow train without it.
-old="--no-projector-shadow"
+# Rows before the projector's shadow train without it, rows before the coarse front end at the
+# seed's scales.
+old="--seed-front-end --no-projector-shadow"
+fine="--seed-front-end"
 # name | ism-train options | ism-eval options | what the row adds
 steps=(
   "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
@@ -28,7 +30,8 @@ steps=(
   "one-answer|$old --cloud-keypoints boundary --no-calibration|--preset default|+ upright boxes from the training objects, height prior, one answer per object"
   "calibrated|$old --cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
   "range-image|$old|--preset default|+ unorganized clouds: contours of the range image from the sensor"
-  "shadow||--preset default|+ the projector's shadow in training scans and calibration rooms (the default)"
+  "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
+  "coarse||--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm (the default)"
   "verified|--verification|--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
 )
 rows=()

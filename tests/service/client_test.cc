@@ -2,12 +2,14 @@
 // 2 usage, 10 + gRPC status code).
 #include <gtest/gtest.h>
 
+#include <cstdio>
 #include <filesystem>
 #include <regex>
 
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
 #include "core/io/file_bytes.h"
+#include "core/training/trainer.h"
 #include "tests/service/service_fixture.h"
 
 namespace ism::testing {
@@ -162,7 +164,9 @@ TEST_F(ClientTest, ModelsListsTheModel) {
   out = client("models show default", &code);
   EXPECT_EQ(code, 0) << out;
   EXPECT_NE(out.find("threshold"), std::string::npos) << out;
-  EXPECT_NE(out.find("SHOT r 0.080 m"), std::string::npos) << out;
+  char shot[32];  // the model is trained with the default front end
+  std::snprintf(shot, sizeof shot, "SHOT r %.3f m", defaultFrontEnd().shot.radius);
+  EXPECT_NE(out.find(shot), std::string::npos) << out;
 }
 
 TEST_F(ClientTest, StreamsAFolderOfDepthPngs) {

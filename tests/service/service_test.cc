@@ -15,6 +15,7 @@
 #include "core/io/depth_png.h"
 #include "core/model/model_file.h"
 #include "core/recognition/recognizer.h"
+#include "core/training/trainer.h"
 #include "grpc/health/v1/health.grpc.pb.h"
 #include "grpc/reflection/v1alpha/reflection.grpc.pb.h"
 #include "tests/service/service_fixture.h"
@@ -447,7 +448,7 @@ TEST_F(ServiceTest, ModelInfoDescribesTheFile) {
   EXPECT_TRUE(std::regex_match(model.version(), std::regex("[0-9a-f]{8}")));
   EXPECT_NE(model.path().find("default.ismm"), std::string::npos);
   EXPECT_GT(model.loaded_at_unix_ms(), 0);
-  EXPECT_FLOAT_EQ(model.front_end().shot_radius(), 0.08f);
+  EXPECT_FLOAT_EQ(model.front_end().shot_radius(), defaultFrontEnd().shot.radius);  // trained with the defaults
   EXPECT_EQ(model.global_codebook_size(), 40u);
   EXPECT_EQ(model.provenance().command(), "service tests");
   ASSERT_EQ(model.categories_size(), 2);
