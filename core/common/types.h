@@ -74,6 +74,9 @@ struct Features {
   std::vector<float> heights;
   std::vector<Eigen::Vector3f> normals;
   std::vector<Eigen::Vector3f> support_directions;
+  // Made from a scene with an image grid (a depth frame), not from an unorganized cloud: the two
+  // reach different scores for the same furniture, so the model may calibrate them apart.
+  bool organized = false;
   size_t size() const { return positions.size(); }
 };
 

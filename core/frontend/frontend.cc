@@ -115,6 +115,7 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     result.features = computeShot(*result.surface, keypoints, params.shot, &described);
     if (result.gravity) addUprightGeometry(*result.surface, described, *result.gravity, params.shot.radius, result.features);
   }
+  result.features.organized = scene.image_width > 0;
   return result;
 }
 

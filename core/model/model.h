@@ -140,6 +140,9 @@ struct CategoryModel {
   // Per training model (TrainingScan::model_index); empty in files written before they were kept.
   std::vector<TrainingObject> objects;
   std::optional<Calibration> calibration;  // models trained before calibration have none
+  // The calibration for scenes without an image grid (Features::organized false), where the
+  // model has one: clouds reach lower scores than depth frames of the same furniture.
+  std::optional<Calibration> cloud_calibration;
 };
 
 struct Provenance {

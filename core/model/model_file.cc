@@ -75,6 +75,16 @@ void toProto(const ActivationParams& a, v1::ActivationParams* out) {
   out->set_cutoff(a.cutoff);
 }
 
+void writeCalibration(const Calibration& in, v1::Calibration* out) {
+  out->set_a(in.a);
+  out->set_b(in.b);
+  out->set_c(in.c);
+  out->set_d(in.d);
+  out->set_min_score(in.min_score);
+  out->set_positives(in.positives);
+  out->set_negatives(in.negatives);
+}
+
 // --- proto -> Model, every size checked against the others ---
 
 class Reader {
@@ -83,6 +93,22 @@ class Reader {
 
   [[noreturn]] void fail(const std::string& what) const {
     throw Error(ErrorCode::kCorruptModel, source_ + ": " + what);
+  }
+
+  Calibration calibration(const v1::Calibration& k, const std::string& where) const {
+    if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && std::isfinite(k.d()) &&
+          k.min_score() >= 0 && std::isfinite(k.min_score()))) {
+      fail(where + " has a calibration that is not finite");
+    }
+    Calibration calibration;
+    calibration.a = k.a();
+    calibration.b = k.b();
+    calibration.c = k.c();
+    calibration.d = k.d();
+    calibration.min_score = k.min_score();
+    calibration.positives = k.positives();
+    calibration.negatives = k.negatives();
+    return calibration;
   }
 
   Codebook codebook(const v1::Codebook& in, const std::string& where) const {
@@ -357,22 +383,8 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
       cat.thresholds[key] = t.value();
       if (t.has_mean() && t.has_std()) cat.threshold_stats[key] = {t.mean(), t.std()};
     }
-    if (c.has_calibration()) {
-      const auto& k = c.calibration();
-      if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && std::isfinite(k.d()) &&
-            k.min_score() >= 0 && std::isfinite(k.min_score()))) {
-        r.fail(where + " has a calibration that is not finite");
-      }
-      Calibration calibration;
-      calibration.a = k.a();
-      calibration.b = k.b();
-      calibration.c = k.c();
-      calibration.d = k.d();
-      calibration.min_score = k.min_score();
-      calibration.positives = k.positives();
-      calibration.negatives = k.negatives();
-      cat.calibration = calibration;
-    }
+    if (c.has_calibration()) cat.calibration = r.calibration(c.calibration(), where);
+    if (c.has_cloud_calibration()) cat.cloud_calibration = r.calibration(c.cloud_calibration(), where + " (clouds)");
     cat.training_models = c.training_models();
     cat.training_scans = c.training_scans();
     m.categories.push_back(std::move(cat));
@@ -468,16 +480,8 @@ std::string serializeModel(const Model& model) {
         object->add_surface(p.z());
       }
     }
-    if (c.calibration) {
-      auto* calibration = out->mutable_calibration();
-      calibration->set_a(c.calibration->a);
-      calibration->set_b(c.calibration->b);
-      calibration->set_c(c.calibration->c);
-      calibration->set_d(c.calibration->d);
-      calibration->set_min_score(c.calibration->min_score);
-      calibration->set_positives(c.calibration->positives);
-      calibration->set_negatives(c.calibration->negatives);
-    }
+    if (c.calibration) writeCalibration(*c.calibration, out->mutable_calibration());
+    if (c.cloud_calibration) writeCalibration(*c.cloud_calibration, out->mutable_cloud_calibration());
     out->set_training_models(c.training_models);
     out->set_training_scans(c.training_scans);
   }

@@ -29,6 +29,7 @@ constexpr float kLowestConfidence = 0.01f;
 // calibration) 1 - 2^-(score / threshold), 0.5 at the leave-one-out threshold.
 struct ConfidenceCurve {
   std::optional<Calibration> calibration;
+  std::optional<Calibration> cloud_calibration;  // replaces `calibration` for unorganized scenes
   float threshold = 0;
   float operator()(const Hypothesis& peak) const {
     if (calibration) {
@@ -86,7 +87,7 @@ Plan planRecognition(const Model& model, const RecognitionOptions& options) {
                             strategy.activation.k == model.trained_knn.k &&
                             strategy.weighting == VoteWeighting::kLocalization;
     ConfidenceCurve curve;
-    if (calibrated) curve.calibration = c.calibration;
+    if (calibrated) curve.calibration = c.calibration, curve.cloud_calibration = c.cloud_calibration;
     if (it != c.thresholds.end()) curve.threshold = it->second;
     plan.confidence.push_back(curve);
     if (options.min_score) {
@@ -260,13 +261,22 @@ void recognizePlanned(const Model& model, const Plan& plan, const Features& feat
   if (options.keep_votes) result.keypoint_positions = features.positions;
 }
 
+// The plan with each category's calibration for the kind of scene the features come from.
+Plan forScene(Plan plan, const Features& features) {
+  if (features.organized) return plan;
+  for (auto& curve : plan.confidence) {
+    if (curve.cloud_calibration) curve.calibration = curve.cloud_calibration;
+  }
+  return plan;
+}
+
 }  // namespace
 
 RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options,
                                     const Scene* scene) {
   const Plan plan = planRecognition(model, options);
   RecognitionResult result;
-  recognizePlanned(model, plan, features, scene, options, result);
+  recognizePlanned(model, forScene(plan, features), features, scene, options, result);
   return result;
 }
 
@@ -280,7 +290,7 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
                                                &result.timings, options.should_stop);
   result.input_points = front.input_points;
   result.surface_points = front.surface_points;
-  recognizePlanned(model, plan, front.features, &scene, options, result);
+  recognizePlanned(model, forScene(plan, front.features), front.features, &scene, options, result);
   return result;
 }
 

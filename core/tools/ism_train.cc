@@ -68,6 +68,9 @@ int main(int argc, char** argv) {
       ->check(CLI::NonNegativeNumber);
   app.add_flag("--no-training-floor", no_training_floor, "render the training meshes without a floor");
   app.add_flag("--no-calibration", no_calibration, "no confidence calibration on rendered rooms");
+  bool no_cloud_calibration = false;
+  app.add_flag("--no-cloud-calibration", no_cloud_calibration,
+               "calibrate on the rendered frames only, not also on them as unorganized point samples");
   app.add_flag("--verification", shapes,
                "keep training shapes, so that recognition verifies hypotheses against the scene's depth");
   app.add_flag("--no-projector-shadow", no_shadow,
@@ -106,6 +109,7 @@ int main(int argc, char** argv) {
   }
   if (no_training_floor) params.render_floor = false;
   if (no_calibration) params.calibration.enabled = false;
+  if (no_cloud_calibration) params.calibration.clouds = false;
   if (shapes) params.shape_spacing = 0.02f;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {

@@ -116,10 +116,25 @@ Room composeRoom(const std::vector<const PlacedObject*>& candidates, const Calib
   return room;
 }
 
+// The room's frame as an unorganized cloud: a random `fraction` of its points, no image grid.
+Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
+  Scene sample;
+  sample.has_color = frame.has_color;
+  sample.sensor_origin = frame.sensor_origin;
+  sample.sensor_orientation = frame.sensor_orientation;
+  sample.source = frame.source + " (point sample)";
+  sample.up = frame.up;
+  std::bernoulli_distribution keep(fraction);
+  for (const auto& p : frame.cloud->points) {
+    if (keep(rng)) sample.cloud->push_back(p);
+  }
+  return sample;
+}
+
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
 // positive, every other peak that is not another peak of that object a negative.
 void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
-                const VerificationScene& view, std::vector<CalibrationSample>& out) {
+                const VerificationScene& view, bool cloud, std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -145,7 +160,7 @@ void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> pe
                    intersectionOverUnion(uprightBoxOf(p.box, to_gravity), box) >= 0.25f;
         if (positive) matched[o] = true;
       }
-      out.push_back({static_cast<int>(c), p.score, p.support, positive, p.verification ? p.verification->fit() : 0.5f});
+      out.push_back({static_cast<int>(c), p.score, p.support, positive, p.verification ? p.verification->fit() : 0.5f, cloud});
     }
   }
 }
@@ -198,20 +213,29 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
       std::mt19937 rng(cp.seed + static_cast<uint32_t>(fold * 100003 + r));
       const Room room = composeRoom(candidates, cp, params.noise, rng);
       if (room.scene.scene.cloud->size() < 1000) return;  // the camera saw next to nothing
-      const Features features = extractFeatures(room.scene.scene, fold_model.front_end, false).features;
-      const VerificationScene view = makeVerificationScene(room.scene.scene, features.gravity);
       std::vector<CalibrationSample> found;
-      for (size_t c = 0; c < fold_model.categories.size(); ++c) {
-        RecognitionOptions category_options = options;
-        category_options.categories = {fold_model.categories[c].name};
-        const auto t = fold_model.categories[c].thresholds.find({CodebookType::kGlobal, strategy.activation.strategy,
-                                                                 VoteWeighting::kLocalization});
-        if (t == fold_model.categories[c].thresholds.end()) continue;
-        category_options.min_score = cp.lowest_score_fraction * t->second;
-        category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
-        auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
-        const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-        labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, found);
+      const auto look = [&](const Scene& scene, bool cloud) {
+        const Features features = extractFeatures(scene, fold_model.front_end, false).features;
+        const VerificationScene view = makeVerificationScene(scene, features.gravity);
+        for (size_t c = 0; c < fold_model.categories.size(); ++c) {
+          RecognitionOptions category_options = options;
+          category_options.categories = {fold_model.categories[c].name};
+          const auto t = fold_model.categories[c].thresholds.find({CodebookType::kGlobal, strategy.activation.strategy,
+                                                                   VoteWeighting::kLocalization});
+          if (t == fold_model.categories[c].thresholds.end()) continue;
+          category_options.min_score = cp.lowest_score_fraction * t->second;
+          category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
+          auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
+          const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
+          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, found);
+        }
+      };
+      look(room.scene.scene, false);
+      if (cp.clouds) {
+        const float lo = std::log(cp.cloud_fraction_min), hi = std::log(cp.cloud_fraction_max);
+        const float fraction = std::exp(lo + (hi - lo) * std::uniform_real_distribution<float>(0.0f, 1.0f)(rng));
+        const Scene sample = pointSample(room.scene.scene, fraction, rng);
+        if (sample.cloud->size() >= 100) look(sample, true);
       }
       std::lock_guard<std::mutex> lock(mutex);
       samples.insert(samples.end(), found.begin(), found.end());
@@ -282,28 +306,35 @@ void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::
                const TrainingParams& params) {
   const std::vector<CalibrationSample> samples = calibrationSamples(model, scans, objects, params);
   for (size_t c = 0; c < model.categories.size(); ++c) {
-    std::vector<CalibrationSample> own;
-    for (const auto& s : samples) {
-      if (s.category == static_cast<int>(c)) own.push_back(s);
-    }
     CategoryModel& category = model.categories[c];
-    std::ostringstream line;
-    line.setf(std::ios::fixed);
-    line.precision(3);
-    try {
-      Calibration fit = fitCalibration(own);
-      if (!(fit.a + fit.c > 0)) throw Error(ErrorCode::kInvalidInput, "the fitted confidence falls with the score");
-      const auto t = category.thresholds.find({CodebookType::kGlobal, model.trained_knn.strategy, VoteWeighting::kLocalization});
-      fit.min_score = t == category.thresholds.end() ? 0.0f : params.calibration.lowest_score_fraction * t->second;
-      category.calibration = fit;
-      line << category.name << " calibration: ln s " << fit.a << ", ln(s / support) " << fit.c << ", fit " << fit.d
-           << ", bias " << fit.b
-           << " (" << fit.positives << " positive and " << fit.negatives << " negative peaks)";
-    } catch (const Error& e) {
-      category.calibration.reset();
-      line << category.name << " calibration: none (" << e.what() << ")";
+    const auto t = category.thresholds.find({CodebookType::kGlobal, model.trained_knn.strategy, VoteWeighting::kLocalization});
+    for (const bool cloud : {false, true}) {
+      std::vector<CalibrationSample> own;
+      for (const auto& s : samples) {
+        if (s.category == static_cast<int>(c) && s.cloud == cloud) own.push_back(s);
+      }
+      std::optional<Calibration>& slot = cloud ? category.cloud_calibration : category.calibration;
+      if (cloud && own.empty()) {  // point samples not asked for
+        slot.reset();
+        continue;
+      }
+      std::ostringstream line;
+      line.setf(std::ios::fixed);
+      line.precision(3);
+      line << category.name << (cloud ? " calibration for clouds: " : " calibration: ");
+      try {
+        Calibration fit = fitCalibration(own);
+        if (!(fit.a + fit.c > 0)) throw Error(ErrorCode::kInvalidInput, "the fitted confidence falls with the score");
+        fit.min_score = t == category.thresholds.end() ? 0.0f : params.calibration.lowest_score_fraction * t->second;
+        slot = fit;
+        line << "ln s " << fit.a << ", ln(s / support) " << fit.c << ", fit " << fit.d << ", bias " << fit.b << " ("
+             << fit.positives << " positive and " << fit.negatives << " negative peaks)";
+      } catch (const Error& e) {
+        slot.reset();
+        line << "none (" << e.what() << ")";
+      }
+      if (params.progress) params.progress(line.str());
     }
-    if (params.progress) params.progress(line.str());
   }
 }
 

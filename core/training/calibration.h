@@ -32,6 +32,7 @@ struct CalibrationSample {
   int support = 0;
   bool positive = false;
   float fit = 0.5f;  // Verification::fit(), 0.5 when not verified
+  bool cloud = false;  // found in a room seen as an unorganized point sample
 };
 
 // The peaks of the calibration scenes, every category's. `scans` are the training scans the
@@ -45,8 +46,9 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
 // Error(kInvalidInput) without both positives and negatives.
 Calibration fitCalibration(const std::vector<CalibrationSample>& samples);
 
-// Fits every category of `model` that has positives and negatives among the samples; the
-// others keep no calibration. Progress lines go to params.progress.
+// Fits every category of `model` that has positives and negatives among the samples, the
+// frames' samples into its calibration and the point samples' into its cloud_calibration; the
+// others keep none. Progress lines go to params.progress.
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
                const TrainingParams& params);
 

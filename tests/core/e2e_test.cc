@@ -130,6 +130,15 @@ TEST_F(EndToEnd, ModelKeepsProvenance) {
   EXPECT_TRUE(model_->has(CodebookType::kSeparated));
 }
 
+TEST_F(EndToEnd, CalibratedOnFramesAndOnPointSamples) {
+  for (const auto& c : model_->categories) {
+    ASSERT_TRUE(c.calibration) << c.name;
+    ASSERT_TRUE(c.cloud_calibration) << c.name << ": the rooms seen as point samples";
+    EXPECT_GT(c.cloud_calibration->positives, 0) << c.name;
+    EXPECT_GT(c.cloud_calibration->negatives, 0) << c.name;
+  }
+}
+
 TEST_F(EndToEnd, FindsEachObjectOfASceneWithItsCategoryAndCentre) {
   std::vector<SceneObject> objects;
   objects.push_back({"dining_chair", testing::syntheticFurniture("dining_chair", 1), 0.6f, 0.2f, 0.6f});

@@ -55,6 +55,10 @@ Model sampleModel() {
     calibration.positives = 40;
     calibration.negatives = 400;
     c.calibration = calibration;
+    if (std::string(name) == "couch") {  // one category calibrated for clouds too, one not
+      calibration.b = -4.0f;
+      c.cloud_calibration = calibration;
+    }
     m.categories.push_back(c);
   }
   m.provenance = {{"couch\ta.obj\tme", "bed\tb.obj\tyou"}, 72, "2024-01-01T00:00:00Z", "v1-test", "ism-train ..."};
@@ -126,6 +130,8 @@ TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
     ASSERT_TRUE(b.calibration);
     EXPECT_EQ(b.calibration->d, 3.5f);
     EXPECT_EQ(b.calibration->confidence(2.0f, 5, 0.8f), a.calibration->confidence(2.0f, 5, 0.8f));
+    ASSERT_EQ(b.cloud_calibration.has_value(), a.cloud_calibration.has_value()) << a.name;
+    if (a.cloud_calibration) EXPECT_EQ(b.cloud_calibration->b, -4.0f);
   }
   EXPECT_EQ(r.provenance.meshes, m.provenance.meshes);
   EXPECT_EQ(r.provenance.scans, 72);

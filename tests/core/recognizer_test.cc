@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <cstdlib>
 
 #include "core/common/error.h"
@@ -69,6 +70,31 @@ TEST(Recognize, FeaturesOfAnObjectGiveItsHypothesisAtTheModelsThreshold) {
   EXPECT_EQ(stages, (std::vector<std::string>{"activate", "vote", "hypotheses", "select"}));
   options.min_score = 40.5f;
   EXPECT_TRUE(recognizeFeatures(m, o.features, options).hypotheses.empty());
+}
+
+TEST(Recognize, UnorganizedScenesTakeTheCloudCalibration) {
+  std::srand(3);
+  HandMadeObject o = handMadeObject(Eigen::Vector3f(0.3f, -0.2f, 0.6f), 40, 0, 0.02f);
+  Model m = modelWithVotes(o.votes);
+  m.categories[0].box = {0.0f, 10.0f, 10.0f};
+  o.features.descriptors = DescriptorMatrix::Identity(40, 40);
+  Calibration frames;  // score 40 -> confidence 0.5
+  frames.a = 1.0f;
+  frames.b = -std::log(40.0f);
+  Calibration clouds = frames;  // -> 0.88
+  clouds.b += 2.0f;
+  m.categories[0].calibration = frames;
+  RecognitionOptions options;
+  options.min_confidence = 0.1f;
+  const auto confidence = [&](bool organized) {
+    o.features.organized = organized;
+    const RecognitionResult result = recognizeFeatures(m, o.features, options);
+    return result.hypotheses.empty() ? -1.0f : result.hypotheses[0].confidence;
+  };
+  EXPECT_NEAR(confidence(false), 0.5f, 1e-3f) << "a model without a cloud calibration uses its one calibration";
+  m.categories[0].cloud_calibration = clouds;
+  EXPECT_NEAR(confidence(true), 0.5f, 1e-3f);
+  EXPECT_NEAR(confidence(false), 1.0f / (1.0f + std::exp(-2.0f)), 1e-3f);
 }
 
 TEST(Recognize, EmptySceneIsInvalid) {

@@ -3,13 +3,16 @@
 # from the shipped model's meshes (Debian's sweethome3d-furniture) and evaluated with ism-eval
 # on the development scans in ../shared/data/real and the shipped sample scene. Every row adds
 # one step to the one above it; the first is the seed's pipeline.
-#   tests/eval/ablation.sh [BUILD_DIR] [OUTPUT.md]      (about 35 minutes on 2 cores)
-# Writes the table to OUTPUT.md (default: stdout) and keeps the models and ism-eval's JSON in
-# BUILD_DIR/ablation/.
+#   tests/eval/ablation.sh [BUILD_DIR] [OUTPUT.md] [ROW...]      (about 35 minutes on 2 cores)
+# Writes the table to OUTPUT.md (default: stdout) and keeps the models, ism-eval's JSON and the
+# training times in BUILD_DIR/ablation/. Given ROW names, only those rows are trained and
+# evaluated again; the others are read from BUILD_DIR/ablation/ (a row changed by a commit must be
+# named, or the whole table made afresh).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "${1:-$root/build}" && pwd)
 out=${2:-/dev/stdout}
+only=("${@:3}")
 real=$root/../shared/data/real
 [[ -d $real ]] || { echo "skipped: $real is absent (development data, see ../shared/docs/DATASETS.md)"; exit 0; }
 work=$build/ablation
@@ -18,9 +21,9 @@ manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" 
            --manifest-only)
 
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
-# seed's scales.
-old="--seed-front-end --no-projector-shadow"
-fine="--seed-front-end"
+# seed's scales, rows before the calibration for clouds calibrate on frames alone.
+old="--seed-front-end --no-projector-shadow --no-cloud-calibration"
+fine="--seed-front-end --no-cloud-calibration"
 # name | ism-train options | ism-eval options | what the row adds
 steps=(
   "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
@@ -31,18 +34,25 @@ steps=(
   "calibrated|$old --cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
   "range-image|$old|--preset default|+ unorganized clouds: contours of the range image from the sensor"
   "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
-  "coarse||--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm (the default)"
+  "coarse|--no-cloud-calibration|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
+  "clouds||--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples (the default)"
   "verified|--verification|--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
 )
 rows=()
 for step in "${steps[@]}"; do
   IFS='|' read -r name train_args eval_args what <<< "$step"
   model=$work/$name.ismm
+  if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
+    [[ -f $work/$name.seconds ]] || { echo "ablation: $name has no earlier run in $work; name it" >&2; exit 1; }
+    rows+=("$name|$what|$(cat "$work/$name.seconds")")
+    continue
+  fi
   start=$(date +%s.%N)
   # shellcheck disable=SC2086
   "$build/core/ism-train" --manifest "$manifest" -o "$model" --codebook global --no-scene-smoothing $train_args \
     > "$work/$name.train.log"
   seconds=$(echo "$(date +%s.%N) - $start" | bc)
+  echo "$seconds" > "$work/$name.seconds"
   for subset in all organized unorganized; do
     case $subset in
       all) scenes=("$real/kinect" "$root/models/sample/living_room.json" "$real/sunrgbd" "$real/scannet") ;;
