@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.
-  bool no_gravity = false, no_training_floor = false, no_calibration = false, shapes = false, no_shadow = false;
+  bool no_gravity = false, no_training_floor = false, no_calibration = false, no_shapes = false, no_shadow = false;
   std::string vote_frame, cloud_keypoints;
   app.add_option("--cloud-keypoints", cloud_keypoints,
                  "keypoints of unorganized clouds: range-image (contours seen from the sensor, the default) or boundary "
@@ -71,8 +71,8 @@ int main(int argc, char** argv) {
   bool no_cloud_calibration = false;
   app.add_flag("--no-cloud-calibration", no_cloud_calibration,
                "calibrate on the rendered frames only, not also on them as unorganized point samples");
-  app.add_flag("--verification", shapes,
-               "keep training shapes, so that recognition verifies hypotheses against the scene's depth");
+  app.add_flag("--no-verification", no_shapes,
+               "keep no training shapes, so that recognition does not verify hypotheses against the scene's depth");
   app.add_flag("--no-projector-shadow", no_shadow,
                "render training scans and calibration rooms without the structured-light projector's shadow");
   app.add_option("--calibration-rooms", params.calibration.rooms_per_fold, "rendered rooms per calibration fold")
@@ -110,7 +110,7 @@ int main(int argc, char** argv) {
   if (no_training_floor) params.render_floor = false;
   if (no_calibration) params.calibration.enabled = false;
   if (no_cloud_calibration) params.calibration.clouds = false;
-  if (shapes) params.shape_spacing = 0.02f;
+  if (no_shapes) params.shape_spacing = 0;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
     std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";

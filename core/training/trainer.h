@@ -54,10 +54,9 @@ struct TrainingParams {
   bool render_floor = true;
   float floor_size = 8.0f;  // m, square
   // Points kept per training mesh for verification (TrainingObject::surface): about this far
-  // apart (m; 0.02 with ism-train --verification), at most shape_points of them. 0 keeps none:
-  // verification is not the default, since on the development scans it did not raise mAP
-  // (docs/EVALUATION.md).
-  float shape_spacing = 0.0f;
+  // apart (m), at most shape_points of them. 0 keeps none, and recognition then verifies nothing
+  // (ism-train --no-verification): docs/EVALUATION.md measures both.
+  float shape_spacing = 0.02f;
   int shape_points = 1500;
   CalibrationParams calibration;  // the seed's models have none
   ViewRingParams views;      // 12 views, as in the seed

@@ -22,8 +22,8 @@ manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" 
 
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
-old="--seed-front-end --no-projector-shadow --no-cloud-calibration"
-fine="--seed-front-end --no-cloud-calibration"
+old="--seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
+fine="--seed-front-end --no-cloud-calibration --no-verification"
 # name | ism-train options | ism-eval options | what the row adds
 steps=(
   "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
@@ -34,9 +34,9 @@ steps=(
   "calibrated|$old --cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
   "range-image|$old|--preset default|+ unorganized clouds: contours of the range image from the sensor"
   "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
-  "coarse|--no-cloud-calibration|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
-  "clouds||--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples (the default)"
-  "verified|--verification|--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
+  "coarse|--no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
+  "clouds|--no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
+  "verified||--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence (the default)"
 )
 rows=()
 for step in "${steps[@]}"; do

@@ -109,7 +109,6 @@ std::string tinyModelDirectory() {
   params.global_kmeans.k = 40;
   params.separated_kmeans.k = 20;
   params.threads = 2;
-  params.shape_spacing = 0.02f;  // with training shapes (ism-train --verification): answers arrive verified
   params.command = "service tests";
   const auto start = std::chrono::steady_clock::now();
   const Model trained = train(meshes, params);
