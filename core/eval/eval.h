@@ -189,6 +189,15 @@ struct ClassScore {
   double ap25 = 0;  // NaN without objects
   int tp25 = 0, fp25 = 0;
   std::vector<std::pair<double, double>> pr25;  // (recall, precision) down the ranking
+  std::vector<std::pair<float, bool>> ranked25;  // every detection: (confidence, TP at IoU 0.25), best first
+  // Per ground-truth object, what recognition came closest with: the scene, the largest 3D IoU of
+  // any of the class's detections and that detection's confidence, and the distance from the
+  // object's centre to the nearest detection's box centre (infinite without detections).
+  struct ObjectOutcome {
+    std::string scene;
+    float best_iou = 0, best_iou_confidence = 0, nearest_distance = 0;
+  };
+  std::vector<ObjectOutcome> outcomes;
 };
 
 // The score a class ranks its detections by: hypotheses of several model categories compete for
@@ -207,7 +216,7 @@ class ClassScorer {
   std::array<int, 3> addScene(const std::vector<GroundTruthObject>& objects,
                               const std::vector<Hypothesis>& hypotheses,
                               const Eigen::Matrix3f& to_gravity = Eigen::Matrix3f::Identity(),
-                              float min_confidence = 0);
+                              float min_confidence = 0, const std::string& scene_name = "");
   std::vector<ClassScore> scores() const;
 
  private:
@@ -217,6 +226,7 @@ class ClassScorer {
     int objects = 0, tp = 0, fp = 0, scenes = 0, tp25 = 0, fp25 = 0;
     std::vector<std::pair<float, bool>> ranked;  // counted detections: merged FPs count once
     std::vector<std::pair<float, bool>> ranked25;  // every detection, by 3D IoU
+    std::vector<ClassScore::ObjectOutcome> outcomes;
   };
   std::vector<Class> classes_;
   std::map<std::string, float> radius_;  // model category -> 1/4 of its maximum box edge

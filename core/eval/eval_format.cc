@@ -154,10 +154,18 @@ std::string realToJson(const RealResult& result) {
     for (const auto& k : c.classes) {
       json pr = json::array();
       for (const auto& [recall, precision] : k.pr25) pr.push_back({recall, precision});
+      json ranked = json::array();
+      for (const auto& [confidence, is_tp] : k.ranked25) ranked.push_back({confidence, is_tp});
+      json outcomes = json::array();
+      for (const auto& o : k.outcomes) {
+        outcomes.push_back({{"scene", o.scene}, {"best_iou", o.best_iou}, {"best_iou_confidence", o.best_iou_confidence},
+                            {"nearest_distance", std::isinf(o.nearest_distance) ? json(nullptr) : json(o.nearest_distance)}});
+      }
       classes.push_back({{"class", k.name}, {"model_categories", k.model_categories}, {"objects", k.objects},
                          {"scenes", k.scenes}, {"tp", k.tp}, {"fp", k.fp}, {"fn", k.fn}, {"rate", k.rate},
                          {"ap", k.ap}, {"ap25", k.ap25}, {"tp25", k.tp25}, {"fp25", k.fp25},
-                         {"recall_precision25", pr}});
+                         {"recall_precision25", pr}, {"confidence_tp25", ranked},
+                         {"objects_outcome", outcomes}});
     }
     combinations.push_back({{"strategy", c.strategy}, {"classes", classes}, {"map25", meanAp25(c)}});
   }

@@ -293,7 +293,8 @@ ClassScorer::ClassScorer(const Model& model, const CategoryMapping& mapping) {
 
 std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& objects,
                                          const std::vector<Hypothesis>& hypotheses,
-                                         const Eigen::Matrix3f& to_gravity, float min_confidence) {
+                                         const Eigen::Matrix3f& to_gravity, float min_confidence,
+                                         const std::string& scene_name) {
   std::array<int, 3> scene{0, 0, 0};
   for (Class& c : classes_) {
     std::vector<Eigen::Vector3f> centres;
@@ -310,6 +311,15 @@ std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& o
       if (h.confidence >= min_confidence) detections.push_back(all.back());
     }
     const auto by_iou = matchDetectionsByIou(all, boxes, 0.25f);
+    for (const UprightBox& box : boxes) {
+      ClassScore::ObjectOutcome outcome{scene_name, 0, 0, std::numeric_limits<float>::infinity()};
+      for (const ScoredDetection& d : all) {
+        const float iou = intersectionOverUnion(d.box, box);
+        if (iou > outcome.best_iou) outcome.best_iou = iou, outcome.best_iou_confidence = d.score;
+        outcome.nearest_distance = std::min(outcome.nearest_distance, (d.box.center - box.center).norm());
+      }
+      c.outcomes.push_back(outcome);
+    }
     for (size_t d = 0; d < all.size(); ++d) {
       c.ranked25.emplace_back(all[d].score, by_iou[d]);
       if (all[d].score >= min_confidence) (by_iou[d] ? c.tp25 : c.fp25) += 1;
@@ -350,6 +360,10 @@ std::vector<ClassScore> ClassScorer::scores() const {
     score.tp25 = c.tp25;
     score.fp25 = c.fp25;
     score.pr25 = precisionRecall(c.ranked25, c.objects);
+    score.ranked25 = c.ranked25;
+    std::stable_sort(score.ranked25.begin(), score.ranked25.end(),
+                     [](const auto& a, const auto& b) { return a.first > b.first; });
+    score.outcomes = c.outcomes;
     out.push_back(score);
   }
   return out;
@@ -391,7 +405,8 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
       result.combinations[s].scene_tp_fp_fn.push_back(
           scorers[s].addScene(annotation.objects, hypotheses, annotation.to_gravity,
                               params.recognition.preset == RecognitionPreset::kSeed ? 0.0f
-                                                                                    : params.recognition.min_confidence));
+                                                                                    : params.recognition.min_confidence,
+                              annotation.name));
     }
     if (params.progress) {
       std::ostringstream line;

@@ -219,6 +219,12 @@ TEST(EvalScorer, BoxesAreComparedInTheGravityFrameAndModelNamesMatchTheirOwnObje
   EXPECT_EQ(scores[1].tp25, 1);
   ASSERT_EQ(scores[1].pr25.size(), 1u);
   EXPECT_EQ(scores[1].pr25[0], (std::pair<double, double>{1.0, 1.0}));
+  // Per detection its confidence and verdict; per object what came closest.
+  EXPECT_EQ(scores[1].ranked25, (std::vector<std::pair<float, bool>>{{0.2f, true}}));
+  ASSERT_EQ(scores[0].outcomes.size(), 1u);
+  EXPECT_NEAR(scores[0].outcomes[0].best_iou, 1.0f, 1e-5f);
+  EXPECT_FLOAT_EQ(scores[0].outcomes[0].best_iou_confidence, 0.3f);
+  EXPECT_NEAR(scores[0].outcomes[0].nearest_distance, 0.0f, 1e-5f);
   // Without the gravity frame the camera-frame couch box stands on its side and misses.
   ClassScorer levelled(model, defaultCategoryMapping());
   levelled.addScene({chair, couch}, {on_chair, on_couch});
