@@ -67,6 +67,8 @@ def main():
     ap.add_argument("--furniture-dir", default="/usr/share/sweethome3d/furniture")
     ap.add_argument("--work", default=os.path.join(HERE, "..", "build", "default-model-src"))
     ap.add_argument("--skip-training", action="store_true", help="only remake the sample scene")
+    ap.add_argument("--background", action="store_true",
+                    help="also train on the background meshes of default/background.tsv (core/training/background.h)")
     ap.add_argument("--manifest-only", action="store_true",
                     help="only extract the meshes and write WORK/manifest.tsv (no training, no sample scene, no credits)")
     args = ap.parse_args()
@@ -74,6 +76,9 @@ def main():
     os.makedirs(args.work, exist_ok=True)
     with open(os.path.join(HERE, "default", "selection.tsv")) as f:
         rows = list(csv.DictReader((l for l in f if not l.startswith("#")), delimiter="\t"))
+    if args.background:
+        with open(os.path.join(HERE, "default", "background.tsv")) as f:
+            rows += list(csv.DictReader((l for l in f if not l.startswith("#")), delimiter="\t"))
 
     meshes = []
     for row in rows:

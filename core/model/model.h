@@ -84,7 +84,14 @@ struct VoteTable {
   // a peak gathers also say how large the object is and which way it is turned.
   std::vector<uint16_t> objects;
   std::vector<float> headings;
+  // Per codeword, how much its votes count, in (0, 1]: how much more often the category's
+  // training keypoints activate it than background does (background.h); empty: every codeword
+  // counts fully (models trained without background meshes).
+  std::vector<float> codeword_weights;
   size_t occurrences(int codeword) const { return offsets[codeword + 1] - offsets[codeword]; }
+  float codewordWeight(int codeword) const {
+    return codeword_weights.empty() ? 1.0f : codeword_weights[static_cast<size_t>(codeword)];
+  }
   bool empty() const { return vectors.empty(); }
 };
 

@@ -49,6 +49,7 @@ void toProto(const VoteTable& table, v1::VoteTable* out) {
   out->mutable_heights()->Add(table.heights.begin(), table.heights.end());
   out->mutable_objects()->Add(table.objects.begin(), table.objects.end());
   out->mutable_headings()->Add(table.headings.begin(), table.headings.end());
+  out->mutable_codeword_weights()->Add(table.codeword_weights.begin(), table.codeword_weights.end());
 }
 
 void toProto(const GravityParams& g, v1::GravityParams* out) {
@@ -174,6 +175,16 @@ class Reader {
       }
       table.objects.assign(in.objects().begin(), in.objects().end());
       table.headings.assign(in.headings().begin(), in.headings().end());
+    }
+    if (in.codeword_weights_size() > 0) {
+      if (in.codeword_weights_size() != codebook_size) {
+        fail(where + " has " + std::to_string(in.codeword_weights_size()) + " codeword weights for " +
+             std::to_string(codebook_size) + " codewords");
+      }
+      for (float w : in.codeword_weights()) {
+        if (!(w > 0 && w <= 1)) fail(where + " has a codeword weight outside (0, 1]");
+      }
+      table.codeword_weights.assign(in.codeword_weights().begin(), in.codeword_weights().end());
     }
     return table;
   }

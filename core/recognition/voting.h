@@ -94,9 +94,9 @@ class VoteCaster {
       const Activation& a = by_keypoint_[i];
       const auto [first, last] = rows_[i];
       if (first == last) continue;
-      float weight = 1.0f;
+      float weight = table_.codewordWeight(a.codeword);
       if (weighting_ != VoteWeighting::kCategorization) {
-        weight = 1.0f / (activated * static_cast<float>(table_.occurrences(a.codeword)));
+        weight /= activated * static_cast<float>(table_.occurrences(a.codeword));
         if (weighting_ == VoteWeighting::kActivation) weight *= 1.0f - a.distance / 2.0f;
       }
       f(weight, first, last);

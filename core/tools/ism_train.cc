@@ -32,7 +32,8 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   std::vector<std::string> bins;
   auto* folders_opt = app.add_option("--folders", folders, "ROOT with one folder of meshes per category");
-  auto* manifest_opt = app.add_option("--manifest", manifest, "TSV: category path [width_m depth_m height_m up rotation credit]");
+  auto* manifest_opt = app.add_option("--manifest", manifest, "TSV: category path [width_m depth_m height_m up rotation credit]; category background: "
+                                      "meshes that weigh the codewords against what is not furniture");
   folders_opt->excludes(manifest_opt);
   app.add_option("-o,--output", output, "model file to write")->required();
   app.add_option("--codebook", codebook, "global, separated or both")->check(CLI::IsMember({"global", "separated", "both"}));

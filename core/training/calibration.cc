@@ -51,6 +51,7 @@ Model foldModel(const Model& model, const std::vector<std::vector<TrainingVote>>
     category.own_votes = {};
     category.calibration.reset();
     category.global_votes = packVotes(votes[c], model.global_codebook->size(), held_out[c]);
+    category.global_votes.codeword_weights = model.categories[c].global_votes.codeword_weights;
     fold.categories.push_back(std::move(category));
   }
   return fold;

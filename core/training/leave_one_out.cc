@@ -18,8 +18,9 @@ std::vector<Model> heldOutModels(const LeaveOneOutInput& input) {
     CategoryModel reduced;
     reduced.name = input.category;
     reduced.bin_size = input.bin_size;
-    (input.codebook_type == CodebookType::kGlobal ? reduced.global_votes : reduced.own_votes) =
-        packVotes(input.votes, input.codebook.size(), m);
+    VoteTable& table = input.codebook_type == CodebookType::kGlobal ? reduced.global_votes : reduced.own_votes;
+    table = packVotes(input.votes, input.codebook.size(), m);
+    table.codeword_weights = input.codeword_weights;
     held_out[static_cast<size_t>(m)].categories.push_back(std::move(reduced));
     held_out[static_cast<size_t>(m)].voting = input.voting;
   }

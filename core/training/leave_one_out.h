@@ -22,6 +22,7 @@ struct LeaveOneOutInput {
   int models;                                     // model_index < models
   float bin_size;                                 // the category's Hough bin
   VotingParams voting{};                          // how the votes are cast
+  std::vector<float> codeword_weights{};          // VoteTable::codeword_weights
 };
 
 // The threshold of one strategy and the held-out scores behind it.

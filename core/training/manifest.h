@@ -15,7 +15,8 @@ struct TrainingMesh {
   std::string credit;  // creator and licence, stored in the model's provenance
 };
 
-// Manifest: TSV with header "category path [width_m depth_m height_m up rotation credit]".
+// Manifest: TSV with header "category path [width_m depth_m height_m up rotation credit]". Rows of
+// the category kBackgroundCategory ("background") are background meshes (background.h).
 std::vector<TrainingMesh> readManifest(const std::string& path);
 // Folders: ROOT/<category>/*.{obj,off,ply}, sizes from defaultCategorySize().
 std::vector<TrainingMesh> meshesFromFolders(const std::string& root);

@@ -16,6 +16,7 @@
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
 #include "core/recognition/box_selection.h"
+#include "core/training/background.h"
 #include "core/training/calibration.h"
 #include "core/training/leave_one_out.h"
 #include "core/training/parallel_for.h"
@@ -224,7 +225,8 @@ std::string describeThresholds(const std::string& category, CodebookType type,
 // One codebook type: codebooks, each category's votes under them, and the leave-one-out
 // thresholds, all stored in `model`.
 void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans,
-                       const std::vector<CategoryScans>& by_category, const TrainingParams& params, Model& model) {
+                       const std::vector<CategoryScans>& by_category, const std::vector<const TrainingScan*>& background,
+                       const TrainingParams& params, Model& model) {
   const auto report = [&](const std::string& line) {
     if (params.progress) params.progress(line);
   };
@@ -232,19 +234,29 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
 
   const auto votes_start = Clock::now();
   std::vector<std::vector<TrainingVote>> votes(by_category.size());
+  std::vector<int> background_counts;
   for (size_t c = 0; c < by_category.size(); ++c) {
     votes[c] = trainingVotes(by_category[c].scans, *codebook_of[c], params.voting.frame);
     VoteTable table = packVotes(votes[c], codebook_of[c]->size());
+    if (!background.empty()) {
+      if (background_counts.empty() || type == CodebookType::kSeparated) {
+        background_counts = activationCounts(*codebook_of[c], background, model.trained_knn);
+      }
+      table.codeword_weights =
+          codewordWeights(activationCounts(*codebook_of[c], by_category[c].scans, model.trained_knn), background_counts);
+    }
     (type == CodebookType::kGlobal ? model.categories[c].global_votes : model.categories[c].own_votes) = std::move(table);
   }
-  report(std::string(toString(type)) + " votes stored in " + fixed(secondsSince(votes_start), 1) + " s");
+  report(std::string(toString(type)) + " votes stored in " + fixed(secondsSince(votes_start), 1) + " s" +
+         (background.empty() ? "" : ", codewords weighed against " + std::to_string(background.size()) + " background scans"));
 
   const auto loo_start = Clock::now();
   const std::vector<ActivationParams> activations{model.trained_knn, model.trained_cutoff};
   for (size_t c = 0; c < by_category.size(); ++c) {
     CategoryModel& category = model.categories[c];
+    const VoteTable& table = type == CodebookType::kGlobal ? category.global_votes : category.own_votes;
     const LeaveOneOutInput input{category.name,          type,   *codebook_of[c], votes[c], by_category[c].scans,
-                                 by_category[c].models, category.bin_size, params.voting};
+                                 by_category[c].models, category.bin_size, params.voting, table.codeword_weights};
     const std::vector<LeaveOneOutThreshold> thresholds =
         leaveOneOutThresholds(input, activations, params.threshold_floor, threadCount(params));
     for (const LeaveOneOutThreshold& t : thresholds) {
@@ -366,7 +378,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
 }
 
 Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<std::string>& categories,
-                     const TrainingParams& params) {
+                     const TrainingParams& params, const std::vector<const TrainingScan*>& background) {
   checkTrainingParams(categories, params);
   Model model;
   model.front_end = params.front_end;
@@ -379,8 +391,10 @@ Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<s
   for (size_t c = 0; c < categories.size(); ++c) {
     model.categories.push_back(categoryModel(categories[c], by_category[c], params));
   }
-  if (params.global_codebook) trainCodebookType(CodebookType::kGlobal, scans, by_category, params, model);
-  if (params.separated_codebooks) trainCodebookType(CodebookType::kSeparated, scans, by_category, params, model);
+  if (params.global_codebook) trainCodebookType(CodebookType::kGlobal, scans, by_category, background, params, model);
+  if (params.separated_codebooks) {
+    trainCodebookType(CodebookType::kSeparated, scans, by_category, background, params, model);
+  }
   return model;
 }
 
@@ -409,11 +423,19 @@ Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& param
   const auto start = Clock::now();
   std::vector<std::string> categories;
   for (const auto& m : meshes) {
-    if (std::find(categories.begin(), categories.end(), m.category) == categories.end()) categories.push_back(m.category);
+    if (m.category != kBackgroundCategory &&
+        std::find(categories.begin(), categories.end(), m.category) == categories.end()) {
+      categories.push_back(m.category);
+    }
   }
+  if (categories.empty()) throw Error(ErrorCode::kInvalidInput, "training: only background meshes, no category");
   const std::vector<Mesh> placed = placeMeshes(meshes, params);
-  const std::vector<TrainingScan> scans = scanMeshes(meshes, placed, params);
-  Model model = trainFromScans(scans, categories, params);
+  std::vector<TrainingScan> scanned = scanMeshes(meshes, placed, params);
+  std::vector<TrainingScan> scans, background_scans;
+  for (auto& s : scanned) (s.category == kBackgroundCategory ? background_scans : scans).push_back(std::move(s));
+  std::vector<const TrainingScan*> background;
+  for (const auto& s : background_scans) background.push_back(&s);
+  Model model = trainFromScans(scans, categories, params, background);
   if (params.shape_spacing > 0) keepShapes(meshes, placed, params, model);
   if (params.calibration.enabled && model.global_codebook) {
     const auto calibration_start = Clock::now();

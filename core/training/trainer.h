@@ -108,8 +108,9 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
                                      const TrainingParams& params);
 
 // Everything after scanning (codebooks, votes, thresholds, boxes); exposed for evaluation.
+// `background`: scans of background meshes (background.h), which weigh every category's codewords.
 Model trainFromScans(const std::vector<TrainingScan>& scans, const std::vector<std::string>& categories,
-                     const TrainingParams& params);
+                     const TrainingParams& params, const std::vector<const TrainingScan*>& background = {});
 
 Model train(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
 

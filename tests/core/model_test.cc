@@ -38,6 +38,7 @@ Model sampleModel() {
     c.box = {0.1f, 2.0f, 2.5f, 1.0f, 0.4f, 1.8f, 0.3f};
     c.own_codebook = Codebook(DescriptorMatrix::Random(4, 352));
     c.global_votes = randomVotes(6, 2);
+    if (std::string(name) == "couch") c.global_votes.codeword_weights = {1.0f, 0.5f, 0.25f, 1.0f, 0.75f, 0.125f};
     c.own_votes = randomVotes(4, 1);
     c.thresholds[{CodebookType::kGlobal, ActivationStrategy::kKnn, VoteWeighting::kActivation}] = 0.75f;
     c.thresholds[{CodebookType::kSeparated, ActivationStrategy::kCutoff, VoteWeighting::kCategorization}] = 12.0f;
@@ -117,6 +118,7 @@ TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
     ASSERT_TRUE(b.own_codebook);
     EXPECT_EQ(a.own_codebook->centers(), b.own_codebook->centers());
     expectEqual(a.global_votes, b.global_votes);
+    EXPECT_EQ(a.global_votes.codeword_weights, b.global_votes.codeword_weights);
     expectEqual(a.own_votes, b.own_votes);
     EXPECT_EQ(a.thresholds, b.thresholds);
     EXPECT_EQ(b.training_models, 3);
@@ -187,6 +189,17 @@ TEST_F(ModelFileTest, RejectsInconsistentVoteTable) {
                   data.mutable_categories(1)->mutable_global_votes()->mutable_offsets()->RemoveLast();
                 }),
                 "category 'bed' global votes has 6 offsets");
+}
+
+TEST_F(ModelFileTest, RejectsCodewordWeightsOfAnotherCodebookOrOutsideTheRange) {
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  data.mutable_categories(0)->mutable_global_votes()->mutable_codeword_weights()->RemoveLast();
+                }),
+                "category 'couch' global votes has 5 codeword weights for 6 codewords");
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  data.mutable_categories(0)->mutable_global_votes()->set_codeword_weights(1, 0.0f);
+                }),
+                "category 'couch' global votes has a codeword weight outside (0, 1]");
 }
 
 // Found by tests/fuzz: with dim 0, size x dim matches an empty centre list for any size.

@@ -53,6 +53,24 @@ TEST(CastVotes, LocalizationWeightsOfAKeypointSumToOneAndActivationWeightsAreSma
   EXPECT_FLOAT_EQ(aw[0].weight, (1 - 0.3f / 2) / (2 * 3));
 }
 
+// Codewords weighed against background (background.h) scale their votes under every weighting.
+TEST(CastVotes, CodewordWeightsScaleTheirVotes) {
+  Features f;
+  f.positions = {Eigen::Vector3f::Zero()};
+  f.lrfs = {Eigen::Matrix3f::Identity()};
+  const std::vector<Eigen::Vector3f> three(3, Eigen::Vector3f::UnitX()), five(5, Eigen::Vector3f::UnitY());
+  Model m = modelWithVotes({three, five});
+  m.categories[0].global_votes.codeword_weights = {0.5f, 0.25f};
+  const std::vector<Activation> activations{{0, 0, 0.3f}, {0, 1, 0.6f}};
+  const auto cw = castVotes(m, 0, f, activations, strategy(VoteWeighting::kCategorization));
+  const auto lw = castVotes(m, 0, f, activations, strategy(VoteWeighting::kLocalization));
+  ASSERT_EQ(lw.size(), 8u);
+  EXPECT_FLOAT_EQ(cw[0].weight, 0.5f);
+  EXPECT_FLOAT_EQ(cw[3].weight, 0.25f);
+  EXPECT_FLOAT_EQ(lw[0].weight, 0.5f / (2 * 3));
+  EXPECT_FLOAT_EQ(lw[3].weight, 0.25f / (2 * 5));
+}
+
 TEST(CastVotes, RejectsActivationsOutsideTheTable) {
   const HandMadeObject o = handMadeObject(Eigen::Vector3f::Zero(), 2);
   const Model m = modelWithVotes(o.votes);

@@ -19,6 +19,9 @@ work=$build/ablation
 mkdir -p "$work"
 manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
            --manifest-only)
+# The last row's manifest adds the background meshes (models/default/background.tsv).
+background_manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" \
+                      --work "$build/background-model-src" --background --manifest-only)
 
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
@@ -37,6 +40,7 @@ steps=(
   "coarse|--no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
   "clouds|--no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
   "verified||--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence (the default)"
+  "background||--preset default|+ codewords weighed against 21 background meshes (optional: manifest rows of category background)"
 )
 rows=()
 for step in "${steps[@]}"; do
@@ -49,7 +53,7 @@ for step in "${steps[@]}"; do
   fi
   start=$(date +%s.%N)
   # shellcheck disable=SC2086
-  "$build/core/ism-train" --manifest "$manifest" -o "$model" --codebook global --no-scene-smoothing $train_args \
+  "$build/core/ism-train" --manifest "$([[ $name == background ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
     > "$work/$name.train.log"
   seconds=$(echo "$(date +%s.%N) - $start" | bc)
   echo "$seconds" > "$work/$name.seconds"
