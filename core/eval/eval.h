@@ -135,13 +135,13 @@ void addCategoryMapping(CategoryMapping& mapping, const std::string& spec);
 // Normals need a sensor position. A cloud file may carry it (a PCD's VIEWPOINT: the sample
 // scene and the project's synthetic scenes); single frames (Kinect, SUN RGB-D) have the camera
 // at the origin of their frame; fused reconstructions (ScanNet) have none, so the viewpoint is
-// put in the middle of the room at eye height: the cloud's x-y centroid, `eye_height` above the
-// floor (the 1st percentile of z), so that floors face up and walls face into the room.
+// put in the middle of the room at eye height (roomCentreViewpoint), so that floors face up and
+// walls face into the room.
 enum class ViewpointPolicy {
-  kAuto,            // the file's sensor pose when it has one; else origin when the JSON's "frame"
-                    // mentions a camera; else kRoomCentre
+  kAuto,            // as recognition decides (mapViewpoint): the file's sensor pose, or the origin
+                    // of a single view, or the middle of a map
   kOrigin,
-  kRoomCentre,
+  kRoomCentre,      // along the ground truth's up
 };
 ViewpointPolicy parseViewpointPolicy(const std::string& s);  // "auto", "origin", "room-centre"
 Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Scene& scene, ViewpointPolicy policy,

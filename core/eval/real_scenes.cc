@@ -11,6 +11,7 @@
 
 #include "core/common/error.h"
 #include "core/eval/eval.h"
+#include "core/gravity/viewpoint.h"
 #include "core/io/cloud_io.h"
 
 namespace ism {
@@ -154,27 +155,15 @@ ViewpointPolicy parseViewpointPolicy(const std::string& s) {
 
 Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Scene& scene, ViewpointPolicy policy,
                                float eye_height) {
-  const Cloud& cloud = *scene.cloud;
+  // What recognition itself does (viewpoint.h): the file's pose, else the origin of a single
+  // view, else the middle of a map.
   if (policy == ViewpointPolicy::kAuto) {
-    const bool file_has_pose = !scene.sensor_origin.isZero() ||
-                               !scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity());
-    if (file_has_pose) return scene.sensor_origin;
-    policy = lowercase(annotation.frame).find("camera") != std::string::npos ? ViewpointPolicy::kOrigin
-                                                                            : ViewpointPolicy::kRoomCentre;
+    ViewpointParams params;
+    params.eye_height = eye_height;
+    return mapViewpoint(scene, params).value_or(scene.sensor_origin);
   }
-  if (policy == ViewpointPolicy::kOrigin || cloud.empty()) return Eigen::Vector3f::Zero();
-  Eigen::Vector3d sum = Eigen::Vector3d::Zero();
-  std::vector<float> heights;
-  heights.reserve(cloud.size());
-  for (const auto& p : cloud) {
-    sum += p.getVector3fMap().cast<double>();
-    heights.push_back(p.z);
-  }
-  // A low percentile rather than the minimum: reconstructions have stray points below the floor.
-  auto floor = heights.begin() + static_cast<long>(heights.size() / 100);
-  std::nth_element(heights.begin(), floor, heights.end());
-  Eigen::Vector3f centroid = (sum / static_cast<double>(cloud.size())).cast<float>();
-  return {centroid.x(), centroid.y(), *floor + eye_height};
+  if (policy == ViewpointPolicy::kOrigin || scene.cloud->empty()) return Eigen::Vector3f::Zero();
+  return roomCentreViewpoint(*scene.cloud, annotation.to_gravity.row(2).transpose(), eye_height);
 }
 
 std::vector<MatchLabel> matchDetections(const std::vector<ScoredDetection>& detections,
@@ -383,11 +372,11 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     Scene scene = loadCloudFile(annotation.cloud_path);
     run.load_ms = millisecondsSince(start);
     run.points = scene.cloud->size();
-    run.viewpoint = sceneViewpoint(annotation, scene, params.viewpoint, params.eye_height);
-    scene.sensor_origin = run.viewpoint;
     // Gravity-levelled data says so, as a robot that knows its pose would; the others make the
     // gravity stage find the floor.
     if (annotation.up_is_given) scene.up = Eigen::Vector3f(annotation.to_gravity.row(2).transpose());
+    run.viewpoint = sceneViewpoint(annotation, scene, params.viewpoint, params.eye_height);
+    scene.sensor_origin = run.viewpoint;
 
     start = std::chrono::steady_clock::now();
     FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled);

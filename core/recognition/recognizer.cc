@@ -6,6 +6,7 @@
 #include <iterator>
 
 #include "core/common/error.h"
+#include "core/gravity/viewpoint.h"
 #include "core/recognition/suppression.h"
 #include "core/recognition/upright_boxes.h"
 #include "core/recognition/verification.h"
@@ -286,11 +287,14 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
   }
   const Plan plan = planRecognition(model, options);
   RecognitionResult result;
-  const FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled,
+  Scene seen = scene;  // shares the points
+  if (const auto viewpoint = mapViewpoint(scene)) seen.sensor_origin = *viewpoint;
+  result.viewpoint = seen.sensor_origin;
+  const FrontEndResult front = extractFeatures(seen, model.front_end, model.front_end.smoothing.enabled,
                                                &result.timings, options.should_stop);
   result.input_points = front.input_points;
   result.surface_points = front.surface_points;
-  recognizePlanned(model, forScene(plan, front.features), front.features, &scene, options, result);
+  recognizePlanned(model, forScene(plan, front.features), front.features, &seen, options, result);
   return result;
 }
 

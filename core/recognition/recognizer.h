@@ -61,6 +61,9 @@ struct RecognitionResult {
   // Above threshold but failed the box selection (seed preset) or the category's priors (default)
   std::vector<Hypothesis> rejected;
   std::optional<Gravity> gravity;      // up and the floor, when the front end found them
+  // Where the scene was looked at from: its sensor origin, or for a map seen from nowhere the
+  // middle of its points (mapViewpoint)
+  Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
   StageTimings timings;
   size_t input_points = 0;
   size_t surface_points = 0;

@@ -8,6 +8,7 @@
 #include <functional>
 
 #include "core/common/error.h"
+#include "core/gravity/viewpoint.h"
 #include "core/io/cloud_io.h"
 #include "core/io/file_bytes.h"
 
@@ -196,12 +197,34 @@ PinholeIntrinsics fittedLens(const Scene& scene, const Eigen::Matrix3f& world_to
   return lens;
 }
 
+// A map seen from nowhere (viewpoint.h) shown from outside it: from above one side, looking down
+// at its middle, where a sensor in its middle would see only what surrounds it.
+std::optional<Eigen::Vector3f> overviewEye(const Scene& scene, const std::optional<Eigen::Vector3f>& up_hint) {
+  Scene levelled = scene;  // shares the points
+  if (up_hint && up_hint->norm() > 0) levelled.up = up_hint->normalized();
+  const std::optional<Eigen::Vector3f> middle = mapViewpoint(levelled);
+  if (!middle) return std::nullopt;
+  const Eigen::Vector3f up = levelled.up ? *levelled.up : Eigen::Vector3f(0, -1, 0);
+  double squared = 0;
+  for (const auto& p : scene.cloud->points) {
+    const Eigen::Vector3f d = p.getVector3fMap() - *middle;
+    squared += (d - up * up.dot(d)).squaredNorm();
+  }
+  const float radius = static_cast<float>(std::sqrt(squared / static_cast<double>(scene.cloud->size())));
+  const Eigen::Vector3f side = up.unitOrthogonal();
+  return *middle + up * (1.2f * radius) - side * (1.5f * radius);
+}
+
 }  // namespace
 
-std::string renderPicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses, const PictureParams& params) {
+std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hypotheses, const PictureParams& params) {
   if (params.width <= 0 || params.height <= 0 || params.width > 16384 || params.height > 16384) {
     throw Error(ErrorCode::kInvalidInput, "picture size " + std::to_string(params.width) + "x" +
                                               std::to_string(params.height) + " is out of range");
+  }
+  Scene scene = given;  // shares the points
+  if (scene.image_width == 0) {
+    if (const auto eye = overviewEye(scene, params.up)) scene.sensor_origin = *eye;
   }
   Canvas canvas(params.width, params.height);
   const Eigen::Matrix3f world_to_camera =

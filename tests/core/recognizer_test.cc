@@ -97,6 +97,25 @@ TEST(Recognize, UnorganizedScenesTakeTheCloudCalibration) {
   EXPECT_NEAR(confidence(false), 1.0f / (1.0f + std::exp(-2.0f)), 1e-3f);
 }
 
+// A cloud without pose whose points surround its origin (a fused map) is looked at from its
+// middle (core/gravity/viewpoint.h); a single view keeps its sensor.
+TEST(Recognize, AMapIsLookedAtFromItsMiddle) {
+  const Model m = modelWithVotes({{Eigen::Vector3f::Zero()}});
+  Scene map;
+  map.source = "map";
+  for (int i = 0; i < 400; ++i) {
+    const float a = 0.0157f * static_cast<float>(i);  // a ring of wall 2 m around the origin
+    for (float z : {0.0f, 0.5f, 1.0f}) map.cloud->push_back(PointT(2 * std::cos(a), 2 * std::sin(a), z));
+  }
+  map.up = Eigen::Vector3f::UnitZ();
+  const RecognitionResult result = recognize(m, map, RecognitionOptions{});
+  EXPECT_NEAR(result.viewpoint.z(), 1.5f, 1e-3f);
+  EXPECT_LT(result.viewpoint.head<2>().norm(), 0.1f);
+  Scene view = map;
+  view.sensor_origin = Eigen::Vector3f(0, 0, 0.7f);
+  EXPECT_EQ(recognize(m, view, RecognitionOptions{}).viewpoint, view.sensor_origin);
+}
+
 TEST(Recognize, EmptySceneIsInvalid) {
   const Model m = modelWithVotes({{Eigen::Vector3f::Zero()}});
   Scene empty;

@@ -128,6 +128,41 @@ TEST(Report, CloudWithoutImageGridIsSeenAlongItsPointsUpUp) {
   EXPECT_GT(lit_top, 0) << "the shelf, highest, is drawn at the top";
 }
 
+TEST(Report, AMapIsDrawnFromAboveOneSide) {
+  // A fused room without a sensor pose, z up, its origin on the floor in its middle, and a chair's
+  // box on each side of the origin: from the origin they would be drawn behind the sensor, their
+  // edges running off the picture; from above one side the whole room and both boxes show.
+  Scene scene;
+  for (float x = -3.0f; x <= 3.0f; x += 0.04f) {
+    for (float y = -2.0f; y <= 2.0f; y += 0.04f) scene.cloud->push_back(PointT(x, y, 0.0f, 0, 0, 0));
+    for (float z = 0.0f; z <= 2.4f; z += 0.04f) scene.cloud->push_back(PointT(x, 2.0f, z, 0, 0, 0));
+  }
+  std::vector<Hypothesis> chairs(2);
+  for (int i = 0; i < 2; ++i) {
+    chairs[static_cast<size_t>(i)].category = "office_chair";
+    chairs[static_cast<size_t>(i)].box.center = Eigen::Vector3f(i == 0 ? -1.5f : 1.5f, 0.0f, 0.45f);
+    chairs[static_cast<size_t>(i)].box.size = Eigen::Vector3f(0.6f, 0.6f, 0.9f);
+  }
+  PictureParams params;
+  params.up = Eigen::Vector3f::UnitZ();
+  int width = 0, height = 0;
+  const std::vector<uint8_t> bare = decodeGrey(renderPicture(scene, {}, params), width, height);
+  const std::vector<uint8_t> boxed = decodeGrey(renderPicture(scene, chairs, params), width, height);
+  int lit = 0, drawn = 0, drawn_at_border = 0;
+  for (int v = 0; v < height; ++v) {
+    for (int u = 0; u < width; ++u) {
+      const auto i = static_cast<size_t>(v * width + u);
+      lit += bare[i] > 0;
+      if (bare[i] == boxed[i]) continue;
+      ++drawn;
+      drawn_at_border += u < 3 || v < 3 || u >= width - 3 || v >= height - 3;
+    }
+  }
+  EXPECT_GT(lit, width * height / 4) << "floor and wall fill much of the picture";
+  EXPECT_GT(drawn, 100) << "both boxes are drawn";
+  EXPECT_EQ(drawn_at_border, 0) << "no box edge runs off the picture";
+}
+
 TEST(Report, DebugPlyHoldsKeypointsVotesAndCentres) {
   Model model;
   model.categories.resize(1);

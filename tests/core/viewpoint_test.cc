@@ -1,0 +1,83 @@
+#include "core/gravity/viewpoint.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace ism {
+namespace {
+
+// A room 6 x 4 m, 2.5 m high, z up, its frame's origin on the floor in the middle (as ScanNet's
+// rooms are): floor and four walls, 5 cm apart.
+Scene room() {
+  Scene s;
+  s.source = "room";
+  const auto add = [&](float x, float y, float z) { s.cloud->push_back(PointT(x, y, z)); };
+  for (float x = -3.0f; x <= 3.0f; x += 0.05f) {
+    for (float y = -2.0f; y <= 2.0f; y += 0.05f) add(x + 0.5f, y, 0.0f);
+    for (float z = 0.0f; z <= 2.5f; z += 0.05f) add(x + 0.5f, -2.0f, z), add(x + 0.5f, 2.0f, z);
+  }
+  for (float y = -2.0f; y <= 2.0f; y += 0.05f) {
+    for (float z = 0.0f; z <= 2.5f; z += 0.05f) add(-2.5f, y, z), add(3.5f, y, z);
+  }
+  return s;
+}
+
+// What a depth camera at the origin sees along +z: points within its 57 x 43 degree view.
+Scene frame() {
+  Scene s;
+  s.source = "frame";
+  for (float u = -0.5f; u <= 0.5f; u += 0.02f) {
+    for (float v = -0.38f; v <= 0.38f; v += 0.02f) s.cloud->push_back(PointT(3.0f * u, 3.0f * v, 3.0f));
+  }
+  return s;
+}
+
+TEST(MapViewpoint, AMapIsSeenFromItsMiddleAtEyeHeight) {
+  Scene s = room();
+  s.up = Eigen::Vector3f(0, 0, 2);  // any length
+  const auto viewpoint = mapViewpoint(s);
+  ASSERT_TRUE(viewpoint.has_value());
+  // The centroid across up lies inside the room, near its middle (walls weigh it); the height is
+  // the floor's plus 1.5 m.
+  EXPECT_NEAR(viewpoint->x(), 0.5f, 0.3f);
+  EXPECT_NEAR(viewpoint->y(), 0.0f, 0.1f);
+  EXPECT_NEAR(viewpoint->z(), 1.5f, 1e-3f);
+  ViewpointParams low;
+  low.eye_height = 0.5f;
+  EXPECT_NEAR(mapViewpoint(s, low)->z(), 0.5f, 1e-3f);
+}
+
+TEST(MapViewpoint, ASingleViewKeepsItsOrigin) {
+  EXPECT_FALSE(mapViewpoint(frame()).has_value());
+  // Turned anywhere: the view's own cone decides, not an axis.
+  Scene turned = frame();
+  for (auto& p : turned.cloud->points) p.getVector3fMap() = Eigen::Vector3f(p.z, -p.x, p.y);
+  EXPECT_FALSE(mapViewpoint(turned).has_value());
+}
+
+TEST(MapViewpoint, AScenesOwnPoseOrImageGridStands) {
+  Scene posed = room();
+  posed.sensor_origin = Eigen::Vector3f(0.5f, 0, 1.2f);
+  EXPECT_FALSE(mapViewpoint(posed).has_value());
+  Scene turned = room();
+  turned.sensor_orientation = Eigen::Quaternionf(Eigen::AngleAxisf(0.3f, Eigen::Vector3f::UnitZ()));
+  EXPECT_FALSE(mapViewpoint(turned).has_value());
+  Scene organized = room();
+  organized.image_width = 1;
+  organized.image_height = static_cast<int>(organized.cloud->size());
+  EXPECT_FALSE(mapViewpoint(organized).has_value());
+  EXPECT_FALSE(mapViewpoint(Scene{}).has_value());
+}
+
+TEST(RoomCentreViewpoint, UpNeedNotBeAnAxis) {
+  Scene s = room();
+  const Eigen::Matrix3f tilt = Eigen::AngleAxisf(0.4f, Eigen::Vector3f::UnitX()).toRotationMatrix();
+  for (auto& p : s.cloud->points) p.getVector3fMap() = tilt * p.getVector3fMap();
+  const Eigen::Vector3f up = tilt * Eigen::Vector3f::UnitZ();
+  const Eigen::Vector3f v = roomCentreViewpoint(*s.cloud, up, 1.5f);
+  EXPECT_NEAR(up.dot(v), 1.5f, 1e-3f);  // the floor is at 0 along up
+}
+
+}  // namespace
+}  // namespace ism
