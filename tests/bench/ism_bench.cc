@@ -38,6 +38,7 @@
 #include "client/cli/common.h"
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
+#include "core/gravity/gravity.h"
 #include "core/io/cloud_io.h"
 #include "core/model/model_file.h"
 #include "core/recognition/recognizer.h"
@@ -121,7 +122,9 @@ void prepareInputs() {
     in.surface = estimateNormals(*in.smoothed, fe.normals, in.scene.sensor_origin);
     in.keypoints = detectKeypoints(in.scene, *in.surface, fe.keypoints, fe.downsample.leaf_size);
   }
-  in.features = describe(*in.surface, in.keypoints, fe.shot);
+  // Voting and the peak search run on what the whole front end gives: the keypoints off floor and
+  // walls, with the gravity stage's up, heights and upright frames.
+  in.features = extractFeatures(in.scene, fe, fe.smoothing.enabled).features;
   in.activations = in.model.global_codebook->activate(in.features.descriptors, in.options.strategy.activation);
   const Strategy& s = in.options.strategy;
   for (const auto& category : in.model.categories) {
@@ -151,6 +154,20 @@ void BM_Downsample(benchmark::State& state) {
   const Inputs& in = inputs();
   for (auto _ : state) benchmark::DoNotOptimize(downsample(*in.scene.cloud, in.model.front_end.downsample));
   state.counters["points"] = static_cast<double>(in.scene.cloud->size());
+}
+
+// The floor, walls and up by RANSAC over the downsampled points (the caller's up not given).
+void BM_Gravity(benchmark::State& state) {
+  setCommon(state);
+  const Inputs& in = inputs();
+  std::vector<Eigen::Vector3f> positions(in.smoothed->size());
+  for (size_t i = 0; i < positions.size(); ++i) positions[i] = (*in.smoothed)[i].getVector3fMap();
+  const Eigen::Vector3f sensor_up = in.scene.sensor_orientation * Eigen::Vector3f(0, -1, 0);
+  for (auto _ : state) {
+    benchmark::DoNotOptimize(estimateGravity(positions, in.scene.sensor_origin, sensor_up, in.scene.up,
+                                             in.model.front_end.gravity));
+  }
+  state.counters["points"] = static_cast<double>(positions.size());
 }
 
 void BM_Smooth(benchmark::State& state) {
@@ -490,6 +507,7 @@ void registerBenchmarks() {
   stage("frame/downsample", BM_Downsample);
   if (inputs().model.front_end.smoothing.enabled) stage("frame/smooth", BM_Smooth);
   // In the order extractFeatures runs them.
+  if (inputs().model.front_end.gravity.enabled) stage("frame/gravity", BM_Gravity);
   if (inputs().organized) {
     stage("frame/keypoints", BM_Keypoints);
     stage("frame/normals", BM_Normals);

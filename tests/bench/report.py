@@ -100,7 +100,8 @@ def main():
         rows.append([measure, one, many, grpc, overhead, pcl, ratio, r])
 
     # An organized frame's keypoints come before its normals (computed only near them).
-    stages = [("downsample", "voxel grid"), ("smooth", "MLS"), ("keypoints", "contours / boundary"), ("normals", "PCA"),
+    stages = [("downsample", "voxel grid"), ("smooth", "MLS"), ("gravity", "floor, walls, up"),
+              ("keypoints", "contours / boundary"), ("normals", "PCA"),
               ("describe", "SHOT + LRF"), ("activate", "codebook"), ("vote", "4 Hough spaces"),
               ("hypotheses", "peaks, support, boxes")]
     for key, what in stages:
