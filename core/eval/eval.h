@@ -255,6 +255,7 @@ struct RealEvalParams {
   CategoryMapping mapping = defaultCategoryMapping();
   ViewpointPolicy viewpoint = ViewpointPolicy::kAuto;
   float eye_height = 1.5f;
+  bool give_up = true;  // pass a gravity-levelled scene's up (AnnotatedScene::up_is_given)
   ProgressFn progress;  // one line per scene; may be empty
 };
 

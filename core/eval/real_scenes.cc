@@ -160,7 +160,8 @@ Eigen::Vector3f sceneViewpoint(const AnnotatedScene& annotation, const Scene& sc
   if (policy == ViewpointPolicy::kAuto) {
     ViewpointParams params;
     params.eye_height = eye_height;
-    return mapViewpoint(scene, params).value_or(scene.sensor_origin);
+    const auto view = mapViewpoint(scene, params);
+    return view ? view->origin : scene.sensor_origin;
   }
   if (policy == ViewpointPolicy::kOrigin || scene.cloud->empty()) return Eigen::Vector3f::Zero();
   return roomCentreViewpoint(*scene.cloud, annotation.to_gravity.row(2).transpose(), eye_height);
@@ -374,9 +375,15 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     run.points = scene.cloud->size();
     // Gravity-levelled data says so, as a robot that knows its pose would; the others make the
     // gravity stage find the floor.
-    if (annotation.up_is_given) scene.up = Eigen::Vector3f(annotation.to_gravity.row(2).transpose());
-    run.viewpoint = sceneViewpoint(annotation, scene, params.viewpoint, params.eye_height);
-    scene.sensor_origin = run.viewpoint;
+    if (annotation.up_is_given && params.give_up) scene.up = Eigen::Vector3f(annotation.to_gravity.row(2).transpose());
+    if (params.viewpoint == ViewpointPolicy::kAuto) {
+      ViewpointParams view;
+      view.eye_height = params.eye_height;
+      scene = lookedAt(scene, view);
+    } else {
+      scene.sensor_origin = sceneViewpoint(annotation, scene, params.viewpoint, params.eye_height);
+    }
+    run.viewpoint = scene.sensor_origin;
 
     start = std::chrono::steady_clock::now();
     FrontEndResult front = extractFeatures(scene, model.front_end, model.front_end.smoothing.enabled);

@@ -72,10 +72,15 @@ std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const
   const auto max_below = static_cast<size_t>(params.max_below_fraction * static_cast<float>(sample.size()));
   std::optional<Plane> best;
   size_t best_support = std::max<size_t>(min_support, 3);
-  for (int it = 0; it < params.iterations; ++it) {
+  // Besides planes through three points, planes square to the prior through one: where the prior
+  // is nearly right (a map written z-up, a levelled robot) one point on the floor finds it, even
+  // when the floor holds too few points for three of them to be drawn at once; its normal is
+  // then fitted to its points below.
+  const int iterations = params.iterations + (normal_is_prior ? 0 : params.prior_iterations);
+  for (int it = 0; it < iterations; ++it) {
     Plane plane;
     const Eigen::Vector3f& a = sample[pick(rng)];
-    if (normal_is_prior) {
+    if (normal_is_prior || it >= params.iterations) {
       // Up is known: a horizontal plane is fixed by one point.
       plane.normal = prior_up;
     } else {

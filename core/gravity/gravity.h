@@ -48,6 +48,7 @@ struct GravityParams {
   float wall_tilt_deg = 10.0f;
   int max_walls = 6;
   int iterations = 300;          // RANSAC hypotheses per plane
+  int prior_iterations = 64;     // and planes square to the sensor's up when up is not given
   size_t sample_points = 20000;  // planes are scored on this many points spread over the scene
   uint32_t seed = 1;             // the same scene always gives the same planes
 };

@@ -6,7 +6,7 @@
 
 namespace ism {
 
-std::optional<Eigen::Vector3f> mapViewpoint(const Scene& scene, const ViewpointParams& params) {
+std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params) {
   if (!scene.cloud || scene.cloud->empty() || scene.image_width > 0) return std::nullopt;
   if (!scene.sensor_origin.isZero() || !scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity())) {
     return std::nullopt;
@@ -33,7 +33,35 @@ std::optional<Eigen::Vector3f> mapViewpoint(const Scene& scene, const ViewpointP
     single_view = static_cast<double>(outside) <= params.outside_fraction * static_cast<double>(counted);
   }
   if (single_view) return std::nullopt;
-  return roomCentreViewpoint(*scene.cloud, scene.up ? *scene.up : Eigen::Vector3f(0, -1, 0), params.eye_height);
+  const Eigen::Vector3f up = scene.up ? scene.up->normalized() : mapUp(*scene.cloud);
+  return MapView{roomCentreViewpoint(*scene.cloud, up, params.eye_height), up};
+}
+
+Scene lookedAt(const Scene& scene, const ViewpointParams& params) {
+  Scene seen = scene;
+  if (const auto view = mapViewpoint(scene, params)) {
+    seen.sensor_origin = view->origin;
+    if (!scene.up) seen.sensor_orientation = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), view->up);
+  }
+  return seen;
+}
+
+Eigen::Vector3f mapUp(const Cloud& cloud) {
+  const size_t stride = std::max<size_t>(1, cloud.size() / 20000);
+  Eigen::Vector3f best = Eigen::Vector3f::UnitZ();
+  size_t most = 0;
+  for (const Eigen::Vector3f& axis : {Eigen::Vector3f(0, 0, 1), Eigen::Vector3f(0, -1, 0), Eigen::Vector3f(0, 1, 0)}) {
+    std::vector<float> heights;
+    for (size_t i = 0; i < cloud.size(); i += stride) heights.push_back(axis.dot(cloud[i].getVector3fMap()));
+    const auto low = heights.begin() + static_cast<long>(heights.size() / 100);
+    std::nth_element(heights.begin(), low, heights.end());
+    const float floor = *low;
+    constexpr float kLayer = 0.05f;
+    const auto layer = static_cast<size_t>(
+        std::count_if(heights.begin(), heights.end(), [&](float h) { return std::abs(h - floor) <= kLayer; }));
+    if (layer > most) most = layer, best = axis;  // ties keep the earlier axis
+  }
+  return best;
 }
 
 Eigen::Vector3f roomCentreViewpoint(const Cloud& cloud, const Eigen::Vector3f& up_direction, float eye_height) {

@@ -24,11 +24,28 @@ struct ViewpointParams {
   float eye_height = 1.5f;
 };
 
-// The viewpoint for `scene` when it is a map seen from nowhere: an unorganized cloud without a
-// sensor pose (origin at zero, identity orientation) whose points are not a single view from the
-// origin. Up is the caller's (scene.up) or else the sensor's (-y). Nothing for every other scene,
-// whose own sensor origin stands.
-std::optional<Eigen::Vector3f> mapViewpoint(const Scene& scene, const ViewpointParams& params = {});
+// How to look at a map seen from nowhere.
+struct MapView {
+  Eigen::Vector3f origin;  // the viewpoint
+  Eigen::Vector3f up;      // the caller's, else mapUp()'s: where the gravity stage seeks the floor
+};
+
+// The view of `scene` when it is a map seen from nowhere: an unorganized cloud without a sensor
+// pose (origin at zero, identity orientation) whose points are not a single view from the origin.
+// Nothing for every other scene, whose own sensor stands.
+std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params = {});
+
+// `scene` as recognition looks at it: a map seen from nowhere gets mapViewpoint()'s origin and,
+// unless the caller gave up, a sensor orientation whose up (the optical frame's -y) is the map's
+// likely up, which is where the gravity stage then seeks the floor. Other scenes are returned as
+// they are. The copy shares the points.
+Scene lookedAt(const Scene& scene, const ViewpointParams& params = {});
+
+// A map's likely up when the caller does not say: of the axes maps are written with (+z of
+// robots' maps, REP 103, and of ScanNet; -y of a camera's frame; +y of meshes), the one whose
+// lowest layer of points (within 5 cm of the 1st percentile) holds the most of them: a floor,
+// the largest surface of a room, rather than a wall. `cloud` must not be empty.
+Eigen::Vector3f mapUp(const Cloud& cloud);
 
 // The middle of a room: the points' centroid across `up`, `eye_height` above their 1st percentile
 // along it (a low percentile rather than the minimum: reconstructions have stray points below the

@@ -287,8 +287,7 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
   }
   const Plan plan = planRecognition(model, options);
   RecognitionResult result;
-  Scene seen = scene;  // shares the points
-  if (const auto viewpoint = mapViewpoint(scene)) seen.sensor_origin = *viewpoint;
+  const Scene seen = lookedAt(scene);  // a map seen from nowhere from its middle
   result.viewpoint = seen.sensor_origin;
   const FrontEndResult front = extractFeatures(seen, model.front_end, model.front_end.smoothing.enabled,
                                                &result.timings, options.should_stop);

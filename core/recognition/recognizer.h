@@ -62,7 +62,7 @@ struct RecognitionResult {
   std::vector<Hypothesis> rejected;
   std::optional<Gravity> gravity;      // up and the floor, when the front end found them
   // Where the scene was looked at from: its sensor origin, or for a map seen from nowhere the
-  // middle of its points (mapViewpoint)
+  // middle of its points (lookedAt)
   Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
   StageTimings timings;
   size_t input_points = 0;

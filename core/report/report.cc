@@ -202,9 +202,10 @@ PinholeIntrinsics fittedLens(const Scene& scene, const Eigen::Matrix3f& world_to
 std::optional<Eigen::Vector3f> overviewEye(const Scene& scene, const std::optional<Eigen::Vector3f>& up_hint) {
   Scene levelled = scene;  // shares the points
   if (up_hint && up_hint->norm() > 0) levelled.up = up_hint->normalized();
-  const std::optional<Eigen::Vector3f> middle = mapViewpoint(levelled);
-  if (!middle) return std::nullopt;
-  const Eigen::Vector3f up = levelled.up ? *levelled.up : Eigen::Vector3f(0, -1, 0);
+  const std::optional<MapView> view = mapViewpoint(levelled);
+  if (!view) return std::nullopt;
+  const Eigen::Vector3f& up = view->up;
+  const Eigen::Vector3f* middle = &view->origin;
   double squared = 0;
   for (const auto& p : scene.cloud->points) {
     const Eigen::Vector3f d = p.getVector3fMap() - *middle;

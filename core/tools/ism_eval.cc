@@ -80,12 +80,14 @@ int main(int argc, char** argv) {
                    "model=gt1|gt2 (repeatable) replaces the default mapping of one model category; defaults: "
                    "office_chair,dining_chair=chair dining_table=table|desk couch=sofa");
   real->add_option("--viewpoint", viewpoint,
-                   "auto | origin | room-centre: where normals point (auto: origin for camera frames, else the "
-                   "room centre at --eye-height above the floor)")
+                   "auto | origin | room-centre: where normals point (auto: as recognition decides, the file's "
+                   "pose, else the origin of a single view, else a map's middle at --eye-height above its floor)")
       ->capture_default_str();
   real->add_option("--eye-height", eye_height, "room-centre viewpoint height above the floor (m)")
       ->capture_default_str();
   real->add_option("--json", json_path, "also write the results as JSON");
+  bool no_up = false;
+  real->add_flag("--no-up", no_up, "never pass the scenes' up, as a caller who does not know it");
   bool no_verify = false;
   real->add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified (verification.h)");
   std::string preset = "default";
@@ -129,6 +131,7 @@ int main(int argc, char** argv) {
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;
+      params.give_up = !no_up;
       params.progress = progress;
       // Every annotation is checked before the long run starts.
       std::vector<ism::AnnotatedScene> scenes;

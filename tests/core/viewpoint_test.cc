@@ -36,8 +36,10 @@ Scene frame() {
 TEST(MapViewpoint, AMapIsSeenFromItsMiddleAtEyeHeight) {
   Scene s = room();
   s.up = Eigen::Vector3f(0, 0, 2);  // any length
-  const auto viewpoint = mapViewpoint(s);
-  ASSERT_TRUE(viewpoint.has_value());
+  const auto view = mapViewpoint(s);
+  ASSERT_TRUE(view.has_value());
+  const Eigen::Vector3f* viewpoint = &view->origin;
+  EXPECT_NEAR((view->up - Eigen::Vector3f::UnitZ()).norm(), 0.0f, 1e-6f);
   // The centroid across up lies inside the room, near its middle (walls weigh it); the height is
   // the floor's plus 1.5 m.
   EXPECT_NEAR(viewpoint->x(), 0.5f, 0.3f);
@@ -45,7 +47,7 @@ TEST(MapViewpoint, AMapIsSeenFromItsMiddleAtEyeHeight) {
   EXPECT_NEAR(viewpoint->z(), 1.5f, 1e-3f);
   ViewpointParams low;
   low.eye_height = 0.5f;
-  EXPECT_NEAR(mapViewpoint(s, low)->z(), 0.5f, 1e-3f);
+  EXPECT_NEAR(mapViewpoint(s, low)->origin.z(), 0.5f, 1e-3f);
 }
 
 TEST(MapViewpoint, ASingleViewKeepsItsOrigin) {
@@ -68,6 +70,29 @@ TEST(MapViewpoint, AScenesOwnPoseOrImageGridStands) {
   organized.image_height = static_cast<int>(organized.cloud->size());
   EXPECT_FALSE(mapViewpoint(organized).has_value());
   EXPECT_FALSE(mapViewpoint(Scene{}).has_value());
+}
+
+// The room written in each convention maps come in: its floor, the largest layer, gives up.
+TEST(MapUp, TheAxisWhoseLowestLayerHoldsTheFloor) {
+  const Scene z_up = room();
+  EXPECT_EQ(mapUp(*z_up.cloud), Eigen::Vector3f(0, 0, 1));
+  Scene y_down = room(), y_up = room();
+  for (auto& p : y_down.cloud->points) p.getVector3fMap() = Eigen::Vector3f(p.x, -p.z, p.y);
+  for (auto& p : y_up.cloud->points) p.getVector3fMap() = Eigen::Vector3f(p.x, p.z, -p.y);
+  EXPECT_EQ(mapUp(*y_down.cloud), Eigen::Vector3f(0, -1, 0));
+  EXPECT_EQ(mapUp(*y_up.cloud), Eigen::Vector3f(0, 1, 0));
+}
+
+TEST(LookedAt, AMapWithoutUpIsTurnedSoThatTheFloorIsSoughtBelow) {
+  const Scene seen = lookedAt(room());
+  EXPECT_NEAR(seen.sensor_origin.z(), 1.5f, 1e-3f);
+  const Eigen::Vector3f sensor_up = seen.sensor_orientation * Eigen::Vector3f(0, -1, 0);
+  EXPECT_NEAR((sensor_up - Eigen::Vector3f::UnitZ()).norm(), 0.0f, 1e-5f);
+  Scene given = room();
+  given.up = Eigen::Vector3f::UnitZ();
+  EXPECT_TRUE(lookedAt(given).sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
+  const Scene single = frame();
+  EXPECT_EQ(lookedAt(single).sensor_origin, Eigen::Vector3f::Zero());
 }
 
 TEST(RoomCentreViewpoint, UpNeedNotBeAnAxis) {
