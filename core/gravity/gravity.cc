@@ -74,8 +74,8 @@ std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const
   size_t best_support = std::max<size_t>(min_support, 3);
   // Besides planes through three points, planes square to the prior through one: where the prior
   // is nearly right (a map written z-up, a levelled robot) one point on the floor finds it, even
-  // when the floor holds too few points for three of them to be drawn at once; its normal is
-  // then fitted to its points below.
+  // when the floor holds too few points for three of them to be drawn at once; the winner's normal
+  // is then fitted to its inliers (refine).
   const int iterations = params.iterations + (normal_is_prior ? 0 : params.prior_iterations);
   for (int it = 0; it < iterations; ++it) {
     Plane plane;

@@ -205,15 +205,15 @@ std::optional<Eigen::Vector3f> overviewEye(const Scene& scene, const std::option
   const std::optional<MapView> view = mapViewpoint(levelled);
   if (!view) return std::nullopt;
   const Eigen::Vector3f& up = view->up;
-  const Eigen::Vector3f* middle = &view->origin;
+  const Eigen::Vector3f& middle = view->origin;
   double squared = 0;
   for (const auto& p : scene.cloud->points) {
-    const Eigen::Vector3f d = p.getVector3fMap() - *middle;
+    const Eigen::Vector3f d = p.getVector3fMap() - middle;
     squared += (d - up * up.dot(d)).squaredNorm();
   }
   const float radius = static_cast<float>(std::sqrt(squared / static_cast<double>(scene.cloud->size())));
   const Eigen::Vector3f side = up.unitOrthogonal();
-  return *middle + up * (1.2f * radius) - side * (1.5f * radius);
+  return middle + up * (1.2f * radius) - side * (1.5f * radius);
 }
 
 }  // namespace

@@ -38,13 +38,13 @@ TEST(MapViewpoint, AMapIsSeenFromItsMiddleAtEyeHeight) {
   s.up = Eigen::Vector3f(0, 0, 2);  // any length
   const auto view = mapViewpoint(s);
   ASSERT_TRUE(view.has_value());
-  const Eigen::Vector3f* viewpoint = &view->origin;
+  const Eigen::Vector3f& viewpoint = view->origin;
   EXPECT_NEAR((view->up - Eigen::Vector3f::UnitZ()).norm(), 0.0f, 1e-6f);
   // The centroid across up lies inside the room, near its middle (walls weigh it); the height is
   // the floor's plus 1.5 m.
-  EXPECT_NEAR(viewpoint->x(), 0.5f, 0.3f);
-  EXPECT_NEAR(viewpoint->y(), 0.0f, 0.1f);
-  EXPECT_NEAR(viewpoint->z(), 1.5f, 1e-3f);
+  EXPECT_NEAR(viewpoint.x(), 0.5f, 0.3f);
+  EXPECT_NEAR(viewpoint.y(), 0.0f, 0.1f);
+  EXPECT_NEAR(viewpoint.z(), 1.5f, 1e-3f);
   ViewpointParams low;
   low.eye_height = 0.5f;
   EXPECT_NEAR(mapViewpoint(s, low)->origin.z(), 0.5f, 1e-3f);
