@@ -59,6 +59,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.box_selection = false;  // the tables count peaks before selection too
   options.min_confidence = 0;     // down to the lowest confidence recognition looks at
   options.verify = recognition.verify;
+  options.suppression.shared_surface = recognition.shared_surface;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -37,6 +37,7 @@ struct EvalRecognition {
   RecognitionPreset preset = RecognitionPreset::kDefault;
   float min_confidence = 0.5f;
   bool verify = true;  // default preset, where the scene is at hand
+  bool shared_surface = true;  // SuppressionParams::shared_surface
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -1,5 +1,6 @@
 #pragma once
 // A hypothesis: what the peak search finds and recognition returns, one object of a category.
+#include <cstdint>
 #include <optional>
 #include <string>
 #include <vector>
@@ -30,6 +31,9 @@ struct Verification {
   int object = -1;     // the shape's training object (CategoryModel::objects)
   float yaw = 0;       // its heading about up in the gravity frame (rad)
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // its box centre, scene coordinates
+  // The measured surface the best pose explains: 5 cm cubes of the gravity frame, sorted. Two
+  // hypotheses of different categories on one object explain the same surface (suppression.h).
+  std::vector<uint64_t> explained;
 };
 
 struct Hypothesis {

@@ -201,7 +201,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     for (auto& h : all) {
       if (h.category == name) own.push_back(std::move(h));
     }
-    if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity);
+    if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity, options.suppression);
     verifyHypotheses(view, model, own, {}, options.should_stop);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
@@ -224,7 +224,7 @@ void selectHypotheses(std::vector<Hypothesis> all, const Features& features, con
   } else {
     const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
     if (options.one_answer_per_object) {
-      all = suppressOverlaps(std::move(all), to_gravity);
+      all = suppressOverlaps(std::move(all), to_gravity, options.suppression);
     } else {
       std::stable_sort(all.begin(), all.end(),
                        [](const Hypothesis& a, const Hypothesis& b) { return a.confidence > b.confidence; });

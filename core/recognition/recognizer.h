@@ -17,6 +17,7 @@
 #include "core/recognition/box_selection.h"
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
+#include "core/recognition/suppression.h"
 #include "core/recognition/voting.h"
 
 namespace ism {
@@ -46,6 +47,7 @@ struct RecognitionOptions {
   // Default preset: merge and compete overlapping hypotheses (suppression.h); false keeps every
   // peak above the threshold (calibration labels them one by one).
   bool one_answer_per_object = true;
+  SuppressionParams suppression;
   // Default preset: check each hypothesis against the scene's depth with the category's training
   // shapes (verification.h), where the model keeps them; the fit enters the confidence and the
   // box becomes the best fitting shape's.

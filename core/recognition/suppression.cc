@@ -13,6 +13,39 @@ bool insideFootprint(const Eigen::Vector3f& p, const UprightBox& box) {
   return std::abs(local.x()) <= box.size.x() / 2 && std::abs(local.y()) <= box.size.y() / 2;
 }
 
+// The share of `h`'s explained surface that `winner` explains too; -1 when either is unverified.
+float sharedSurface(const Hypothesis& winner, const Hypothesis& h) {
+  if (!winner.verification || !h.verification || h.verification->explained.empty()) return -1;
+  const auto& a = winner.verification->explained;
+  const auto& b = h.verification->explained;
+  size_t shared = 0;
+  for (size_t i = 0, j = 0; i < a.size() && j < b.size();) {
+    if (a[i] < b[j]) {
+      ++i;
+    } else if (b[j] < a[i]) {
+      ++j;
+    } else {
+      ++shared, ++i, ++j;
+    }
+  }
+  return static_cast<float>(shared) / static_cast<float>(b.size());
+}
+
+// Boxes that overlap by less than min_iou. Peaks of one category whose centres fall in each
+// other's footprint are one object (a table's long top gives several). Across categories a centre
+// in the other's footprint is not enough: a chair pushed under a desk has its centre in the desk's
+// footprint and is an object of its own. There the verified surface decides, as the
+// multiple-assignment term of Aldoma et al.'s global verification does: the less confident is the
+// same object when the winner explains most of the surface it explains. Unverified, they are one
+// object when either centre lies in the other's footprint.
+bool sameObject(const Hypothesis& winner, const UprightBox& winner_box, const Hypothesis& h, const UprightBox& box,
+                const SuppressionParams& params) {
+  if (!insideFootprint(box.center, winner_box) && !insideFootprint(winner_box.center, box)) return false;
+  if (winner.category == h.category || !params.shared_surface) return true;
+  const float shared = sharedSurface(winner, h);
+  return shared < 0 || shared >= params.min_shared_surface;
+}
+
 }  // namespace
 
 std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, const Eigen::Matrix3f& to_gravity,
@@ -25,8 +58,7 @@ std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, con
     const UprightBox box = uprightBoxOf(h.box, to_gravity);
     size_t winner = kept.size();
     for (size_t i = 0; i < kept.size() && winner == kept.size(); ++i) {
-      if (intersectionOverUnion(boxes[i], box) >= params.min_iou || insideFootprint(box.center, boxes[i]) ||
-          insideFootprint(boxes[i].center, box)) {
+      if (intersectionOverUnion(boxes[i], box) >= params.min_iou || sameObject(kept[i], boxes[i], h, box, params)) {
         winner = i;
       }
     }

@@ -2,8 +2,10 @@
 // One object, one answer. Peaks of one category on one object (a table's long top gives
 // several) merge into the most confident; hypotheses of different categories on one object
 // compete, the most confident wins, and the others stay on it as alternatives. Two hypotheses
-// are on one object when their upright boxes overlap by at least `min_iou` or the centre of one
-// lies inside the other's footprint.
+// are on one object when their upright boxes overlap by at least `min_iou` (3D IoU, as VoteNet's
+// non-maximum suppression), or when the centre of one lies inside the other's footprint and, for
+// two verified hypotheses of different categories, the more confident explains at least
+// `min_shared_surface` of the other's verified surface.
 #include <Eigen/Core>
 #include <vector>
 
@@ -13,6 +15,9 @@ namespace ism {
 
 struct SuppressionParams {
   float min_iou = 0.25f;
+  float min_shared_surface = 0.5f;
+  // false: across categories too, a centre in the other's footprint alone makes one object.
+  bool shared_surface = true;
 };
 
 // `hypotheses` in any order, with boxes in scene coordinates; `to_gravity` turns them into the

@@ -266,6 +266,8 @@ void verifyHypotheses(const VerificationScene& scene, const Model& model, std::v
     h.verification = verify(scene, *category, h, params, &own, &mine);
     own.insert(mine.begin(), mine.end());
     if (!h.verification) continue;
+    h.verification->explained.assign(mine.begin(), mine.end());
+    std::sort(h.verification->explained.begin(), h.verification->explained.end());
     UprightBox box;
     box.size = category->objects[static_cast<size_t>(h.verification->object)].size;
     box.yaw = h.verification->yaw;

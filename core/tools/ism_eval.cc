@@ -90,6 +90,10 @@ int main(int argc, char** argv) {
   real->add_flag("--no-up", no_up, "never pass the scenes' up, as a caller who does not know it");
   bool no_verify = false;
   real->add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified (verification.h)");
+  bool centre_suppression = false;
+  real->add_flag("--centre-suppression", centre_suppression,
+                 "default preset: across categories, a centre in the other's footprint makes one object whatever "
+                 "surface each explains (suppression.h)");
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -127,7 +131,7 @@ int main(int argc, char** argv) {
       json = ism::baselineToJson(result);
     } else {
       ism::RealEvalParams params;
-      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify};
+      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

@@ -27,7 +27,7 @@ background_manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$b
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
 old="--seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
 fine="--seed-front-end --no-cloud-calibration --no-verification"
-# name | ism-train options | ism-eval options | what the row adds
+# name | ism-train options (=ROW: that row's model) | ism-eval options | what the row adds
 steps=(
   "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
   "planes|$old --cloud-keypoints boundary --vote-frame lrf --height-tolerance 0 --no-calibration|--preset seed|+ up and floor: floor and walls never keypoints, training meshes on a floor"
@@ -39,7 +39,8 @@ steps=(
   "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
   "coarse|--no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
   "clouds|--no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
-  "verified||--preset default|+ verification: training shapes fitted to the measured depth, the fit in the confidence (the default)"
+  "verified||--preset default --centre-suppression|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
+  "surface|=verified|--preset default|+ one object across categories only where one explains the other's verified surface (the default)"
   "background||--preset default|+ codewords weighed against 21 background meshes (optional: manifest rows of category background)"
 )
 rows=()
@@ -51,12 +52,18 @@ for step in "${steps[@]}"; do
     rows+=("$name|$what|$(cat "$work/$name.seconds")")
     continue
   fi
-  start=$(date +%s.%N)
-  # shellcheck disable=SC2086
-  "$build/core/ism-train" --manifest "$([[ $name == background ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
-    > "$work/$name.train.log"
-  seconds=$(echo "$(date +%s.%N) - $start" | bc)
-  echo "$seconds" > "$work/$name.seconds"
+  if [[ $train_args == =* ]]; then  # a recognition step: the model of the row named
+    model=$work/${train_args#=}.ismm
+    cp "$work/${train_args#=}.seconds" "$work/$name.seconds"
+    seconds=$(cat "$work/$name.seconds")
+  else
+    start=$(date +%s.%N)
+    # shellcheck disable=SC2086
+    "$build/core/ism-train" --manifest "$([[ $name == background ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
+      > "$work/$name.train.log"
+    seconds=$(echo "$(date +%s.%N) - $start" | bc)
+    echo "$seconds" > "$work/$name.seconds"
+  fi
   for subset in all organized unorganized; do
     case $subset in
       all) scenes=("$real/kinect" "$root/models/sample/living_room.json" "$real/sunrgbd" "$real/scannet") ;;
