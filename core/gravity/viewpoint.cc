@@ -37,8 +37,21 @@ std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& p
   return MapView{roomCentreViewpoint(*scene.cloud, up, params.eye_height), up};
 }
 
+bool facesItsPoints(const Scene& scene) {
+  if (!scene.cloud || scene.cloud->empty()) return true;
+  const Eigen::Matrix3f to_sensor = scene.sensor_orientation.normalized().toRotationMatrix().transpose();
+  const auto& points = scene.cloud->points;
+  const size_t stride = std::max<size_t>(1, points.size() / 20000);
+  size_t in_front = 0, counted = 0;
+  for (size_t i = 0; i < points.size(); i += stride, ++counted) {
+    if ((to_sensor * (points[i].getVector3fMap() - scene.sensor_origin)).z() > 0) ++in_front;
+  }
+  return 2 * in_front >= counted;
+}
+
 Scene lookedAt(const Scene& scene, const ViewpointParams& params) {
   Scene seen = scene;
+  if (scene.image_width > 0 && !facesItsPoints(scene)) seen.sensor_orientation = Eigen::Quaternionf::Identity();
   if (const auto view = mapViewpoint(scene, params)) {
     seen.sensor_origin = view->origin;
     if (!scene.up) seen.sensor_orientation = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), view->up);

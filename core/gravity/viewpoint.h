@@ -35,10 +35,18 @@ struct MapView {
 // Nothing for every other scene, whose own sensor stands.
 std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params = {});
 
+// Whether at least half of the points lie in front of the sensor (+z of its optical frame, turned
+// by its orientation). A depth image's points all do; some files' pose says otherwise (PCL's test
+// frames such as office1.pcd carry a VIEWPOINT turned 180 degrees about x while their points are
+// in the optical frame).
+bool facesItsPoints(const Scene& scene);
+
 // `scene` as recognition looks at it: a map seen from nowhere gets mapViewpoint()'s origin and,
 // unless the caller gave up, a sensor orientation whose up (the optical frame's -y) is the map's
-// likely up, which is where the gravity stage then seeks the floor. Other scenes are returned as
-// they are. The copy shares the points.
+// likely up, which is where the gravity stage then seeks the floor. An image whose orientation
+// turns its sensor away from its points (facesItsPoints) is taken in its points' own frame, the
+// orientation dropped: its up would point down. Other scenes are returned as they are. The copy
+// shares the points.
 Scene lookedAt(const Scene& scene, const ViewpointParams& params = {});
 
 // A map's likely up when the caller does not say: of the axes maps are written with (+z of

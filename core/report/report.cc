@@ -228,6 +228,9 @@ std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hyp
     if (const auto eye = overviewEye(scene, params.up)) scene.sensor_origin = *eye;
   }
   Canvas canvas(params.width, params.height);
+  // An image whose pose turns its sensor away from its points is drawn in the points' own frame,
+  // as recognition takes it (viewpoint.h, facesItsPoints); else the picture would be empty.
+  if (scene.image_width > 0 && !facesItsPoints(scene)) scene.sensor_orientation = Eigen::Quaternionf::Identity();
   const Eigen::Matrix3f world_to_camera =
       scene.image_width > 0 ? Eigen::Matrix3f(scene.sensor_orientation.normalized().toRotationMatrix().transpose())
                             : cloudViewRotation(scene, params.up);

@@ -128,6 +128,32 @@ TEST(Report, CloudWithoutImageGridIsSeenAlongItsPointsUpUp) {
   EXPECT_GT(lit_top, 0) << "the shelf, highest, is drawn at the top";
 }
 
+TEST(Report, AnImageWhosePoseLooksAwayFromItsPointsIsDrawnInItsOwnFrame) {
+  // A 160x120 frame of a wall 2 m ahead in the optical frame (z forward), its pose turned 180
+  // degrees about x (w 0, x 1), as PCL's test frames (office1.pcd) carry it.
+  Scene scene;
+  scene.image_width = 160;
+  scene.image_height = 120;
+  for (int v = 0; v < 120; ++v)
+    for (int u = 0; u < 160; ++u) {
+      scene.cloud->push_back(PointT((u - 79.5f) * 2.0f / 131.25f, (v - 59.5f) * 2.0f / 131.25f, 2.0f, 200, 200, 200));
+      scene.pixel_index.push_back(v * 160 + u);
+    }
+  scene.has_color = true;
+  scene.sensor_orientation = Eigen::Quaternionf(0, 1, 0, 0);
+  PictureParams params;
+  params.width = 160;
+  params.height = 120;
+  params.fx = params.fy = 131.25f;
+  params.cx = 79.5f;
+  params.cy = 59.5f;
+  int width = 0, height = 0;
+  const std::vector<uint8_t> grey = decodeGrey(renderPicture(scene, {}, params), width, height);
+  int lit = 0;
+  for (const uint8_t g : grey) lit += g > 0;
+  EXPECT_GT(lit, width * height * 9 / 10) << "the wall fills the picture";
+}
+
 TEST(Report, AMapIsDrawnFromAboveOneSide) {
   // A fused room without a sensor pose, z up, its origin on the floor in its middle, and a chair's
   // box on each side of the origin: from the origin they would be drawn behind the sensor, their

@@ -95,6 +95,28 @@ TEST(LookedAt, AMapWithoutUpIsTurnedSoThatTheFloorIsSoughtBelow) {
   EXPECT_EQ(lookedAt(single).sensor_origin, Eigen::Vector3f::Zero());
 }
 
+TEST(LookedAt, AnImageWhosePoseTurnsItsSensorAwayIsTakenInItsPointsOwnFrame) {
+  // A depth image in the optical frame (z forward), its pose turned 180 degrees about x (w 0,
+  // x 1), as PCL's test frames carry it: its -y, the floor's side, would point down.
+  Scene image = frame();
+  image.image_width = 26;
+  image.image_height = 20;
+  const Eigen::Quaternionf away(0, 1, 0, 0);
+  image.sensor_orientation = away;
+  EXPECT_FALSE(facesItsPoints(image));
+  EXPECT_TRUE(lookedAt(image).sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
+  // The same pose with the points where it looks (z negated) stands.
+  Scene turned = image;
+  turned.cloud.reset(new Cloud);
+  for (const auto& p : image.cloud->points) turned.cloud->push_back(PointT(p.x, -p.y, -p.z));
+  EXPECT_TRUE(facesItsPoints(turned));
+  EXPECT_TRUE(lookedAt(turned).sensor_orientation.isApprox(away));
+  // A cloud without an image grid keeps its pose: a room sample's frame need not be optical.
+  Scene cloud = image;
+  cloud.image_width = cloud.image_height = 0;
+  EXPECT_TRUE(lookedAt(cloud).sensor_orientation.isApprox(away));
+}
+
 TEST(RoomCentreViewpoint, UpNeedNotBeAnAxis) {
   Scene s = room();
   const Eigen::Matrix3f tilt = Eigen::AngleAxisf(0.4f, Eigen::Vector3f::UnitX()).toRotationMatrix();
