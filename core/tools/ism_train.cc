@@ -39,6 +39,9 @@ int main(int argc, char** argv) {
   app.add_option("--codebook", codebook, "global, separated or both")->check(CLI::IsMember({"global", "separated", "both"}));
   app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(CLI::PositiveNumber);
   app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(CLI::PositiveNumber);
+  app.add_option("--activation-k", params.knn.k,
+                 "codewords each descriptor activates (k-NN activation), with which thresholds and calibration are made")
+      ->check(CLI::Range(1, 32));
   app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
   bool seed_front_end = false;
   auto* seed_front_end_opt = app.add_flag("--seed-front-end", seed_front_end,
