@@ -55,15 +55,33 @@ Scene lookedAt(const Scene& scene, const ViewpointParams& params) {
   if (const auto view = mapViewpoint(scene, params)) {
     seen.sensor_origin = view->origin;
     if (!scene.up) seen.sensor_orientation = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), view->up);
+  } else if (scene.image_width == 0 && !scene.up && scene.cloud && !scene.cloud->empty() && scene.sensor_origin.isZero() &&
+             scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity())) {
+    // A single view without pose, grid or up: written z up (SUN RGB-D's frames, a robot's base
+    // frame) as often as in the camera's optical frame (-y up). Its floor is sought along the axis
+    // a map's would be, of those across its line of sight.
+    Eigen::Vector3d looking = Eigen::Vector3d::Zero();
+    const auto& points = scene.cloud->points;
+    for (size_t i = 0; i < points.size(); i += std::max<size_t>(1, points.size() / 20000)) {
+      const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
+      if (p.norm() > 1e-6) looking += p.normalized();
+    }
+    const std::optional<Eigen::Vector3f> along =
+        looking.norm() > 1e-9 ? std::optional<Eigen::Vector3f>(looking.normalized().cast<float>()) : std::nullopt;
+    seen.sensor_orientation = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), mapUp(*scene.cloud, along));
   }
   return seen;
 }
 
-Eigen::Vector3f mapUp(const Cloud& cloud) {
+Eigen::Vector3f mapUp(const Cloud& cloud, const std::optional<Eigen::Vector3f>& looking) {
   const size_t stride = std::max<size_t>(1, cloud.size() / 20000);
   Eigen::Vector3f best = Eigen::Vector3f::UnitZ();
   size_t most = 0;
+  bool any = false;
   for (const Eigen::Vector3f& axis : {Eigen::Vector3f(0, 0, 1), Eigen::Vector3f(0, -1, 0), Eigen::Vector3f(0, 1, 0)}) {
+    // A view's far wall faces it: a dense layer across its line of sight, never its floor.
+    if (looking && std::abs(axis.dot(*looking)) > std::cos(static_cast<float>(M_PI) / 4)) continue;
+    if (!any) best = axis, any = true;
     std::vector<float> heights;
     for (size_t i = 0; i < cloud.size(); i += stride) heights.push_back(axis.dot(cloud[i].getVector3fMap()));
     const auto low = heights.begin() + static_cast<long>(heights.size() / 100);

@@ -45,15 +45,17 @@ bool facesItsPoints(const Scene& scene);
 // unless the caller gave up, a sensor orientation whose up (the optical frame's -y) is the map's
 // likely up, which is where the gravity stage then seeks the floor. An image whose orientation
 // turns its sensor away from its points (facesItsPoints) is taken in its points' own frame, the
-// orientation dropped: its up would point down. Other scenes are returned as they are. The copy
-// shares the points.
+// orientation dropped: its up would point down. A single view without image grid, pose or up
+// gets the orientation whose up is mapUp()'s, as a map does. Other scenes are returned as they
+// are. The copy shares the points.
 Scene lookedAt(const Scene& scene, const ViewpointParams& params = {});
 
 // A map's likely up when the caller does not say: of the axes maps are written with (+z of
 // robots' maps, REP 103, and of ScanNet; -y of a camera's frame; +y of meshes), the one whose
 // lowest layer of points (within 5 cm of the 1st percentile) holds the most of them: a floor,
-// the largest surface of a room, rather than a wall. `cloud` must not be empty.
-Eigen::Vector3f mapUp(const Cloud& cloud);
+// the largest surface of a room, rather than a wall. With `looking`, a single view's line of sight,
+// the axes within 45 degrees of it are left out. `cloud` must not be empty.
+Eigen::Vector3f mapUp(const Cloud& cloud, const std::optional<Eigen::Vector3f>& looking = std::nullopt);
 
 // The middle of a room: the points' centroid across `up`, `eye_height` above their 1st percentile
 // along it (a low percentile rather than the minimum: reconstructions have stray points below the

@@ -117,6 +117,34 @@ TEST(LookedAt, AnImageWhosePoseTurnsItsSensorAwayIsTakenInItsPointsOwnFrame) {
   EXPECT_TRUE(lookedAt(cloud).sensor_orientation.isApprox(away));
 }
 
+// A single view 1.2 m above a floor, looking along `forward` (z up and y forward in SUN RGB-D's
+// frames; y down and z forward in a camera's optical frame): floor from 1 to 4 m ahead, a wall
+// across the line of sight at 4 m, denser than any layer of the floor.
+Scene singleView(bool optical) {
+  Scene s;
+  const auto add = [&](float x, float ahead, float height) {
+    s.cloud->push_back(optical ? PointT(x, 1.2f - height, ahead) : PointT(x, ahead, height - 1.2f));
+  };
+  for (float x = -1.5f; x <= 1.5f; x += 0.05f) {
+    for (float ahead = 1.0f; ahead < 4.0f; ahead += 0.05f) add(x, ahead, 0.0f);
+    for (float height = 0.0f; height <= 2.5f; height += 0.02f) add(x, 4.0f, height);
+  }
+  return s;
+}
+
+TEST(LookedAt, ASingleViewWithoutPoseOrUpSeeksItsFloorAcrossItsLineOfSight) {
+  const Eigen::Vector3f sun_up = lookedAt(singleView(false)).sensor_orientation * Eigen::Vector3f(0, -1, 0);
+  EXPECT_NEAR((sun_up - Eigen::Vector3f::UnitZ()).norm(), 0.0f, 1e-5f);
+  const Eigen::Vector3f optical_up = lookedAt(singleView(true)).sensor_orientation * Eigen::Vector3f(0, -1, 0);
+  EXPECT_NEAR((optical_up - Eigen::Vector3f(0, -1, 0)).norm(), 0.0f, 1e-5f);
+  // Without the line of sight, the wall's layer would have won.
+  EXPECT_NEAR((mapUp(*singleView(false).cloud) - Eigen::Vector3f(0, -1, 0)).norm(), 0.0f, 1e-5f);
+  // A given up or pose stands.
+  Scene given = singleView(false);
+  given.up = Eigen::Vector3f::UnitZ();
+  EXPECT_TRUE(lookedAt(given).sensor_orientation.isApprox(Eigen::Quaternionf::Identity()));
+}
+
 TEST(RoomCentreViewpoint, UpNeedNotBeAnAxis) {
   Scene s = room();
   const Eigen::Matrix3f tilt = Eigen::AngleAxisf(0.4f, Eigen::Vector3f::UnitX()).toRotationMatrix();
