@@ -64,16 +64,22 @@ TEST(Report, TableListsEveryHypothesis) {
   EXPECT_NE(hypothesesTable(RecognitionResult{}).find("no hypotheses"), std::string::npos);
 }
 
+// A Kinect's lens (525 px focal length at 640 x 480) scaled to a picture of width x height.
+PictureParams kinectLens(int width, int height) {
+  PictureParams params;
+  params.width = width;
+  params.height = height;
+  params.fx = params.fy = 525.0f * static_cast<float>(width) / 640.0f;
+  params.cx = 0.5f * static_cast<float>(width - 1);
+  params.cy = 0.5f * static_cast<float>(height - 1);
+  return params;
+}
+
 TEST(Report, PictureIsAPngOfTheRequestedSizeWithTheBoxDrawn) {
   Scene scene;  // a wall 2 m in front of a sensor at the origin looking along +z
   for (float x = -1; x <= 1; x += 0.01f)
     for (float y = -0.8f; y <= 0.8f; y += 0.01f) scene.cloud->push_back(PointT(x, y, 2.0f, 0, 0, 0));
-  PictureParams params;
-  params.width = 320;
-  params.height = 240;
-  params.fx = params.fy = 262.5f;
-  params.cx = 159.5f;
-  params.cy = 119.5f;
+  const PictureParams params = kinectLens(320, 240);
   const std::string png = renderPicture(scene, sampleResult().hypotheses, params);
   ASSERT_GT(png.size(), 33u);
   EXPECT_EQ(png.substr(0, 8), std::string("\x89PNG\r\n\x1a\n", 8));
@@ -131,22 +137,18 @@ TEST(Report, CloudWithoutImageGridIsSeenAlongItsPointsUpUp) {
 TEST(Report, AnImageWhosePoseLooksAwayFromItsPointsIsDrawnInItsOwnFrame) {
   // A 160x120 frame of a wall 2 m ahead in the optical frame (z forward), its pose turned 180
   // degrees about x (w 0, x 1), as PCL's test frames (office1.pcd) carry it.
+  const PictureParams params = kinectLens(160, 120);
   Scene scene;
-  scene.image_width = 160;
-  scene.image_height = 120;
-  for (int v = 0; v < 120; ++v)
-    for (int u = 0; u < 160; ++u) {
-      scene.cloud->push_back(PointT((u - 79.5f) * 2.0f / 131.25f, (v - 59.5f) * 2.0f / 131.25f, 2.0f, 200, 200, 200));
-      scene.pixel_index.push_back(v * 160 + u);
+  scene.image_width = params.width;
+  scene.image_height = params.height;
+  for (int v = 0; v < params.height; ++v)
+    for (int u = 0; u < params.width; ++u) {
+      scene.cloud->push_back(PointT((static_cast<float>(u) - params.cx) * 2.0f / params.fx,
+                                    (static_cast<float>(v) - params.cy) * 2.0f / params.fy, 2.0f, 200, 200, 200));
+      scene.pixel_index.push_back(v * params.width + u);
     }
   scene.has_color = true;
   scene.sensor_orientation = Eigen::Quaternionf(0, 1, 0, 0);
-  PictureParams params;
-  params.width = 160;
-  params.height = 120;
-  params.fx = params.fy = 131.25f;
-  params.cx = 79.5f;
-  params.cy = 59.5f;
   int width = 0, height = 0;
   const std::vector<uint8_t> grey = decodeGrey(renderPicture(scene, {}, params), width, height);
   int lit = 0;
