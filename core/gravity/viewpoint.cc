@@ -6,42 +6,69 @@
 
 namespace ism {
 
-std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params) {
-  if (!scene.cloud || scene.cloud->empty() || scene.image_width > 0) return std::nullopt;
-  if (!scene.sensor_origin.isZero() || !scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity())) {
-    return std::nullopt;
-  }
-  const auto& points = scene.cloud->points;
-  // Every point counted on big clouds would cost more than the rest of the decision needs.
-  const size_t stride = std::max<size_t>(1, points.size() / 20000);
+namespace {
+
+// The decisions below look at this many points of a cloud at most: every point of a big one
+// would cost more than the rest of the decision needs.
+size_t sampleStride(size_t points) { return std::max<size_t>(1, points / 20000); }
+
+// An unorganized cloud without a sensor pose (origin at zero, identity orientation).
+bool poseless(const Scene& scene) {
+  return scene.cloud && !scene.cloud->empty() && scene.image_width == 0 && scene.sensor_origin.isZero() &&
+         scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity());
+}
+
+// How a poseless cloud lies about its origin: a map when its points surround it, else a single
+// view along its line of sight (the points' mean direction; none when no point is off the origin).
+struct Spread {
+  bool map = false;
+  std::optional<Eigen::Vector3f> line_of_sight;
+};
+
+Spread spreadAboutOrigin(const Cloud& cloud, const ViewpointParams& params) {
+  const auto& points = cloud.points;
+  const size_t stride = sampleStride(points.size());
   Eigen::Vector3d mean_direction = Eigen::Vector3d::Zero();
   size_t counted = 0;
   for (size_t i = 0; i < points.size(); i += stride) {
     const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
     if (p.norm() > 1e-6) mean_direction += p.normalized(), ++counted;
   }
-  if (counted == 0) return std::nullopt;
-  bool single_view = mean_direction.norm() > 1e-9;
-  if (single_view) {
-    mean_direction.normalize();
-    const double cos_limit = std::cos(params.max_view_angle_deg * M_PI / 180.0);
-    size_t outside = 0;
-    for (size_t i = 0; i < points.size(); i += stride) {
-      const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
-      if (p.norm() > 1e-6 && p.normalized().dot(mean_direction) < cos_limit) ++outside;
-    }
-    single_view = static_cast<double>(outside) <= params.outside_fraction * static_cast<double>(counted);
+  if (counted == 0) return {};
+  if (!(mean_direction.norm() > 1e-9)) return {true, std::nullopt};
+  mean_direction.normalize();
+  const double cos_limit = std::cos(params.max_view_angle_deg * M_PI / 180.0);
+  size_t outside = 0;
+  for (size_t i = 0; i < points.size(); i += stride) {
+    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
+    if (p.norm() > 1e-6 && p.normalized().dot(mean_direction) < cos_limit) ++outside;
   }
-  if (single_view) return std::nullopt;
+  if (static_cast<double>(outside) > params.outside_fraction * static_cast<double>(counted)) return {true, std::nullopt};
+  return {false, mean_direction.cast<float>()};
+}
+
+MapView mapView(const Scene& scene, const ViewpointParams& params) {
   const Eigen::Vector3f up = scene.up ? scene.up->normalized() : mapUp(*scene.cloud);
   return MapView{roomCentreViewpoint(*scene.cloud, up, params.eye_height), up};
+}
+
+// The sensor orientation whose up, the optical frame's -y, is `up`.
+Eigen::Quaternionf orientationWithUp(const Eigen::Vector3f& up) {
+  return Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), up);
+}
+
+}  // namespace
+
+std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params) {
+  if (!poseless(scene) || !spreadAboutOrigin(*scene.cloud, params).map) return std::nullopt;
+  return mapView(scene, params);
 }
 
 bool facesItsPoints(const Scene& scene) {
   if (!scene.cloud || scene.cloud->empty()) return true;
   const Eigen::Matrix3f to_sensor = scene.sensor_orientation.normalized().toRotationMatrix().transpose();
   const auto& points = scene.cloud->points;
-  const size_t stride = std::max<size_t>(1, points.size() / 20000);
+  const size_t stride = sampleStride(points.size());
   size_t in_front = 0, counted = 0;
   for (size_t i = 0; i < points.size(); i += stride, ++counted) {
     if ((to_sensor * (points[i].getVector3fMap() - scene.sensor_origin)).z() > 0) ++in_front;
@@ -52,29 +79,23 @@ bool facesItsPoints(const Scene& scene) {
 Scene lookedAt(const Scene& scene, const ViewpointParams& params) {
   Scene seen = scene;
   if (scene.image_width > 0 && !facesItsPoints(scene)) seen.sensor_orientation = Eigen::Quaternionf::Identity();
-  if (const auto view = mapViewpoint(scene, params)) {
-    seen.sensor_origin = view->origin;
-    if (!scene.up) seen.sensor_orientation = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), view->up);
-  } else if (scene.image_width == 0 && !scene.up && scene.cloud && !scene.cloud->empty() && scene.sensor_origin.isZero() &&
-             scene.sensor_orientation.isApprox(Eigen::Quaternionf::Identity())) {
+  if (!poseless(scene)) return seen;
+  const Spread spread = spreadAboutOrigin(*scene.cloud, params);
+  if (spread.map) {
+    const MapView view = mapView(scene, params);
+    seen.sensor_origin = view.origin;
+    if (!scene.up) seen.sensor_orientation = orientationWithUp(view.up);
+  } else if (!scene.up) {
     // A single view without pose, grid or up: written z up (SUN RGB-D's frames, a robot's base
     // frame) as often as in the camera's optical frame (-y up). Its floor is sought along the axis
     // a map's would be, of those across its line of sight.
-    Eigen::Vector3d looking = Eigen::Vector3d::Zero();
-    const auto& points = scene.cloud->points;
-    for (size_t i = 0; i < points.size(); i += std::max<size_t>(1, points.size() / 20000)) {
-      const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
-      if (p.norm() > 1e-6) looking += p.normalized();
-    }
-    const std::optional<Eigen::Vector3f> along =
-        looking.norm() > 1e-9 ? std::optional<Eigen::Vector3f>(looking.normalized().cast<float>()) : std::nullopt;
-    seen.sensor_orientation = Eigen::Quaternionf::FromTwoVectors(Eigen::Vector3f(0, -1, 0), mapUp(*scene.cloud, along));
+    seen.sensor_orientation = orientationWithUp(mapUp(*scene.cloud, spread.line_of_sight));
   }
   return seen;
 }
 
 Eigen::Vector3f mapUp(const Cloud& cloud, const std::optional<Eigen::Vector3f>& looking) {
-  const size_t stride = std::max<size_t>(1, cloud.size() / 20000);
+  const size_t stride = sampleStride(cloud.size());
   Eigen::Vector3f best = Eigen::Vector3f::UnitZ();
   size_t most = 0;
   bool any = false;
