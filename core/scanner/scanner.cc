@@ -102,6 +102,57 @@ class Rasterizer {
   std::vector<int>* label_;
 };
 
+// The correlation window's effects on the exact depth (NoiseParams::pixel_shift, window), in
+// place; infinity = no return. `label` (may be null) follows the shifted pixels.
+void applyCorrelationWindow(std::vector<float>* depth, std::vector<int>* label, const CameraIntrinsics& k,
+                            const NoiseParams& noise) {
+  const int w = k.width, h = k.height;
+  const float inf = std::numeric_limits<float>::infinity();
+  if (noise.pixel_shift > 0) {
+    std::mt19937 rng(noise.seed ^ 0x9e3779b9u);
+    std::normal_distribution<float> shift(0.0f, noise.pixel_shift);
+    std::vector<float> shifted(depth->size(), inf);
+    std::vector<int> shifted_label(label != nullptr ? label->size() : 0, -1);
+    for (int row = 0; row < h; ++row) {
+      for (int col = 0; col < w; ++col) {
+        const long u = std::lround(static_cast<float>(col) + shift(rng));
+        const long v = std::lround(static_cast<float>(row) + shift(rng));
+        if (u < 0 || v < 0 || u >= w || v >= h) continue;
+        const size_t from = static_cast<size_t>(v * w + u), to = static_cast<size_t>(row * w + col);
+        shifted[to] = (*depth)[from];
+        if (label != nullptr) shifted_label[to] = (*label)[from];
+      }
+    }
+    depth->swap(shifted);
+    if (label != nullptr) label->swap(shifted_label);
+  }
+  if (noise.window <= 1 || noise.window_agreement <= 0) return;
+  const float fb = k.fx * noise.baseline;
+  const int r = noise.window / 2;
+  std::vector<float> kept(*depth);
+  for (int row = 0; row < h; ++row) {
+    for (int col = 0; col < w; ++col) {
+      const float z = (*depth)[static_cast<size_t>(row * w + col)];
+      if (!std::isfinite(z) || z <= 0) continue;
+      const float d = fb / z;
+      int samples = 0, agree = 0;
+      for (int dv = -r; dv <= r; dv += 2) {
+        const int v = row + dv;
+        if (v < 0 || v >= h) continue;
+        for (int du = -r; du <= r; du += 2) {
+          const int u = col + du;
+          if (u < 0 || u >= w) continue;
+          ++samples;
+          const float zz = (*depth)[static_cast<size_t>(v * w + u)];
+          agree += std::isfinite(zz) && zz > 0 && std::abs(fb / zz - d) <= noise.window_tolerance;
+        }
+      }
+      if (static_cast<float>(agree) < noise.window_agreement * static_cast<float>(samples)) kept[static_cast<size_t>(row * w + col)] = inf;
+    }
+  }
+  depth->swap(kept);
+}
+
 // Kinect-like measurement of the exact depth, in place (0 = no return).
 void applySensorModel(std::vector<float>* depth, const CameraIntrinsics& k, const NoiseParams& noise) {
   std::mt19937 rng(noise.seed);
@@ -179,6 +230,7 @@ DepthImage render(const std::vector<const Mesh*>& meshes, const Eigen::Isometry3
   if (noise.enabled && noise.projector_shadow && noise.baseline > 0) {
     castProjectorShadow(meshes, camera_to_world, intrinsics, noise.baseline, &image.depth);
   }
+  if (noise.enabled) applyCorrelationWindow(&image.depth, label, intrinsics, noise);
   applySensorModel(&image.depth, intrinsics, noise);
   return image;
 }

@@ -26,6 +26,19 @@ struct NoiseParams {
   // depth beside every occluding edge of a structured-light sensor (Landau, Choo and Beling,
   // "Simulating Kinect infrared and depth images", IEEE Trans. Cybernetics 2016).
   bool projector_shadow = true;
+  // The Kinect finds each pixel's disparity by correlating a window of the projected dot pattern
+  // (9 x 9 pixels), so its depth is not a pixel's own: edges are displaced by a fraction of a
+  // pixel, and where the window straddles surfaces at different depths the match fails and the
+  // pixel returns nothing, which eats the rims of objects and thins or breaks legs and rods. As
+  // in the simulators of Barron and Malik (simkinect) and Handa et al. (ICL-NUIM, ICRA 2014):
+  // each pixel reads the exact depth at a Gaussian offset of `pixel_shift` pixels, then keeps its
+  // depth only if at least `window_agreement` of the window's samples (every other pixel, the
+  // pattern's dots) lie within `window_tolerance` pixels of disparity of it. window = 0 turns the
+  // window test off.
+  float pixel_shift = 0.0f;  // 0.5 in simkinect and ICL-NUIM
+  int window = 0;  // the Kinect's is 9
+  float window_agreement = 0.5f;
+  float window_tolerance = 0.5f;
   float min_depth = 0.5f;  // closer surfaces return nothing
   float max_depth = 6.0f;
   uint32_t seed = 1;

@@ -79,6 +79,13 @@ int main(int argc, char** argv) {
                "keep no training shapes, so that recognition does not verify hypotheses against the scene's depth");
   app.add_flag("--no-projector-shadow", no_shadow,
                "render training scans and calibration rooms without the structured-light projector's shadow");
+  app.add_option("--pixel-shift", params.noise.pixel_shift,
+                 "training and calibration renders: each pixel reads the depth this many pixels off (Gaussian sigma; 0 = off)")
+      ->check(CLI::Range(0.0, 3.0));
+  app.add_option("--correlation-window", params.noise.window,
+                 "training and calibration renders: drop pixels whose window (N x N) of the Kinect's dot pattern straddles "
+                 "depths (0 = off)")
+      ->check(CLI::Range(0, 21));
   app.add_option("--calibration-rooms", params.calibration.rooms_per_fold, "rendered rooms per calibration fold")
       ->check(CLI::PositiveNumber);
   bool no_scene_smoothing = false;

@@ -347,6 +347,50 @@ TEST(RenderDepth, TheProjectorsShadowLeavesABandLeftOfAnOccluder) {
   EXPECT_EQ(lit[static_cast<size_t>(post_left - 1)], 0.0f) << "the band touches the post";
 }
 
+TEST(RenderDepth, TheCorrelationWindowLosesThinRodsAndJitteredEdgesFollowTheSeed) {
+  // Before a wall at 3 m, 2 m from the camera: a rod 1 cm wide (2.6 pixels) and a post 10 cm wide
+  // (26 pixels). A 9 x 9 window on the rod sees mostly wall, so the rod returns nothing; the post
+  // and the wall keep their pixels.
+  const Mesh wall = boxMesh({-3, 3, -3}, {3, 3.1f, 3});
+  const Mesh rod = boxMesh({-0.2f, 2.0f, -3}, {-0.19f, 2.01f, 3});
+  const Mesh post = boxMesh({0.3f, 2.0f, -3}, {0.4f, 2.05f, 3});
+  const Eigen::Isometry3f camera = lookAt({0, 0, 0}, {0, 1, 0});
+  NoiseParams exact;
+  exact.sigma_a = exact.sigma_b = 0;
+  exact.disparity_step = 0;
+  exact.projector_shadow = false;
+  NoiseParams window = exact;
+  window.window = 9;
+  const auto near = [](const DepthImage& image, int row) {  // pixels of the row on the rod and on the post
+    int rod = 0, post = 0, wall = 0;
+    for (int c = 0; c < 640; ++c) {
+      const float z = image.depth[static_cast<size_t>(row * 640 + c)];
+      if (std::abs(z - 2.0f) < 0.01f) (c < 320 ? rod : post) += 1;
+      if (std::abs(z - 3.0f) < 0.01f) ++wall;
+    }
+    return std::make_tuple(rod, post, wall);
+  };
+  const DepthImage plain = renderDepth({&wall, &rod, &post}, camera, {}, exact);
+  const DepthImage windowed = renderDepth({&wall, &rod, &post}, camera, {}, window);
+  const auto [rod0, post0, wall0] = near(plain, 240);
+  const auto [rod1, post1, wall1] = near(windowed, 240);
+  EXPECT_GE(rod0, 2);
+  EXPECT_EQ(rod1, 0) << "a rod narrower than half the window returns nothing";
+  EXPECT_NEAR(post1, post0, 2);
+  EXPECT_NEAR(wall1, wall0, 6) << "the wall loses at most the pixels beside the rod";
+
+  // Each pixel reading the depth half a pixel off: the post's edges move from row to row, the
+  // same way for the same seed.
+  NoiseParams shifted = exact;
+  shifted.pixel_shift = 0.5f;
+  const DepthImage a = renderDepth({&wall, &rod, &post}, camera, {}, shifted);
+  std::set<int> widths;
+  for (int row = 100; row < 380; row += 10) widths.insert(std::get<1>(near(a, row)));
+  EXPECT_GE(widths.size(), 2u);
+  for (int w : widths) EXPECT_NEAR(w, post0, 3);
+  EXPECT_EQ(renderDepth({&wall, &rod, &post}, camera, {}, shifted).depth, a.depth);
+}
+
 TEST(SampleSurface, EvenlySpreadOnTheSurfaceDeterministicAndCapped) {
   const Mesh cube = testing::boxMesh({0, 0, 0}, {1, 1, 1});
   const auto points = sampleSurface(cube, 0.05f, 100000, 3);

@@ -44,6 +44,7 @@ steps=(
   "verified||--preset default --centre-suppression|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
   "surface|=verified|--preset default|+ one object across categories only where one explains the other's verified surface (the default)"
   "background||--preset default|+ codewords weighed against 21 background meshes (optional: manifest rows of category background)"
+  "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
 for step in "${steps[@]}"; do
