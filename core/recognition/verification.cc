@@ -115,41 +115,63 @@ struct ShapeView {
   float cell = 0.04f;
 };
 
+// A z-buffer of the shape's points over a LocalView's pixels, kept between poses: only the
+// pixels a pose touched are cleared after it.
+struct ShapeBuffer {
+  std::vector<float> z;    // per pixel, the nearest shape point's depth; infinity where none
+  std::vector<int> index;  // and which point it is
+  std::vector<int> touched;
+  std::vector<Eigen::Vector3f> placed;
+  explicit ShapeBuffer(size_t pixels) : z(pixels, std::numeric_limits<float>::infinity()), index(pixels, -1) {}
+};
+
 // The front-most of the shape's first `points` points per pixel against the measured depth there.
 // Measured surface a better hypothesis of the category already explained counts neither way:
 // two overlapping hypotheses do not both take credit for one surface. With `explained`, the cells
 // of the agreeing points are added to it.
 Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
-                    std::vector<std::tuple<int, float, int>>& scratch, std::unordered_set<uint64_t>* explained = nullptr) {
+                    ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr) {
   const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-  scratch.clear();
   const int n = std::min<int>(points, static_cast<int>(shape.size()));
-  std::vector<Eigen::Vector3f> placed(static_cast<size_t>(n));
+  buffer.placed.resize(static_cast<size_t>(n));
+  buffer.touched.clear();
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector3f& q = shape[static_cast<size_t>(i)];
-    placed[static_cast<size_t>(i)] = {c * q.x() - s * q.y() + pose.xy.x(), s * q.x() + c * q.y() + pose.xy.y(), q.z() + sv.floor_z};
+    Eigen::Vector3f& placed = buffer.placed[static_cast<size_t>(i)];
+    placed = {c * q.x() - s * q.y() + pose.xy.x(), s * q.x() + c * q.y() + pose.xy.y(), q.z() + sv.floor_z};
     float z = 0;
-    const int pixel = sv.view.project(placed[static_cast<size_t>(i)], z);
-    if (pixel >= 0) scratch.emplace_back(pixel, z, i);
+    const int pixel = sv.view.project(placed, z);
+    if (pixel < 0) continue;
+    const size_t p = static_cast<size_t>(pixel);
+    if (buffer.index[p] < 0) buffer.touched.push_back(pixel);
+    if (buffer.index[p] < 0 || z < buffer.z[p]) {  // the first of equally near points stays
+      buffer.z[p] = z;
+      buffer.index[p] = i;
+    }
   }
-  std::sort(scratch.begin(), scratch.end());
+  const std::vector<Eigen::Vector3f>& placed = buffer.placed;
   Agreement a;
   a.tested = n;
-  for (size_t i = 0; i < scratch.size(); ++i) {
-    const auto [pixel, z, index] = scratch[i];
-    if (i > 0 && std::get<0>(scratch[i - 1]) == pixel) continue;  // hidden behind the shape's own front
+  for (const int pixel : buffer.touched) {
+    const float z = buffer.z[static_cast<size_t>(pixel)];
+    const int index = buffer.index[static_cast<size_t>(pixel)];
+    buffer.z[static_cast<size_t>(pixel)] = std::numeric_limits<float>::infinity();
+    buffer.index[static_cast<size_t>(pixel)] = -1;
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];
     const float m = depthMargin(z, sv.margin);
     if (!std::isfinite(measured) || measured < z - m) continue;  // no measurement, or something in front
-    const bool agrees = measured <= z + m;
+    if (measured > z + m) {  // seen through
+      ++a.seen;
+      continue;
+    }
     // The measured surface point behind the shape's: on the same ray, at the measured depth.
-    const uint64_t surface = cellOf(placed[static_cast<size_t>(index)] * (measured / z), sv.cell);
-    if (agrees && sv.claimed != nullptr && sv.claimed->count(surface) > 0) {
+    const bool cell_needed = explained != nullptr || (sv.claimed != nullptr && !sv.claimed->empty());
+    const uint64_t surface = cell_needed ? cellOf(placed[static_cast<size_t>(index)] * (measured / z), sv.cell) : 0;
+    if (sv.claimed != nullptr && !sv.claimed->empty() && sv.claimed->count(surface) > 0) {
       ++a.claimed;
       continue;
     }
     ++a.seen;
-    if (!agrees) continue;
     ++a.consistent;
     if (explained != nullptr) explained->insert(surface);
   }
@@ -199,7 +221,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   const std::optional<LocalView> view = lookAt(scene, middle, radius);
   if (!view) return std::nullopt;
 
-  std::vector<std::tuple<int, float, int>> scratch;
+  ShapeBuffer scratch(view->depth.size());
   const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f};
   std::vector<std::pair<float, Pose>> coarse;
   for (size_t o = 0; o < category.objects.size(); ++o) {
