@@ -109,6 +109,11 @@ def main():
         if one is None and many is None and bench.find(f"frame/{key}") is None:
             continue
         row(f"stage {key} ({what}), ms", fmt(one), fmt(many))
+    one, many = bench.ms("frame/verify10/threads:1"), bench.ms(f"frame/verify10/threads:{all_t}")
+    if one is not None or many is not None:
+        n = bench.counter("frame/verify10/threads:1", "candidates")
+        row(f"stage verify ({n:.0f} most confident candidates' fit; issue 15: 10 in 20 ms), ms" if n else
+            "stage verify (no candidates), ms", fmt(one), fmt(many))
     one, many = bench.ms("frame/recognize/threads:1"), bench.ms(f"frame/recognize/threads:{all_t}")
     g1, gn = bench.ms("grpc/recognize/threads:1"), bench.ms(f"grpc/recognize/threads:{all_t}")
     o1, on = pct(g1, one), pct(gn, many)
