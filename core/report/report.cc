@@ -218,7 +218,8 @@ std::optional<Eigen::Vector3f> overviewEye(const Scene& scene, const std::option
 
 }  // namespace
 
-std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hypotheses, const PictureParams& params) {
+std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hypotheses, const PictureParams& params,
+                          const Model* model) {
   if (params.width <= 0 || params.height <= 0 || params.width > 16384 || params.height > 16384) {
     throw Error(ErrorCode::kInvalidInput, "picture size " + std::to_string(params.width) + "x" +
                                               std::to_string(params.height) + " is out of range");
@@ -276,6 +277,31 @@ std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hyp
 
   constexpr float kNearPlane = 0.05f;  // edges are clipped here so that nothing behind the sensor projects
   for (const auto& h : hypotheses) {
+    const CategoryModel* category = nullptr;  // by name here: reports link no model library
+    if (model != nullptr && h.verification) {
+      for (const auto& c : model->categories) {
+        if (c.name == h.category) category = &c;
+      }
+    }
+    if (category == nullptr || h.verification->object < 0 ||
+        h.verification->object >= static_cast<int>(category->objects.size())) {
+      continue;
+    }
+    // The shape stands on its box's bottom (TrainingObject: centred on x = y = 0, on z = 0), turned
+    // as the fitted box is; 3 cm of depth bias lets it show on the surface it agrees with.
+    const TrainingObject& shape = category->objects[static_cast<size_t>(h.verification->object)];
+    const Eigen::Matrix3f axes = h.box.rotation.toRotationMatrix();
+    const Eigen::Vector3f bottom(0, 0, shape.size.z() / 2);
+    const Eigen::Vector3i color = categoryColor(h.category);
+    for (const auto& q : shape.surface) {
+      const Eigen::Vector3f c = toCamera(h.box.center + axes * (q - bottom));
+      if (!(c.z() > kNearPlane)) continue;
+      const Eigen::Vector2f uv = project(c);
+      canvas.splat(static_cast<int>(std::floor(uv.x())), static_cast<int>(std::floor(uv.y())), c.z() - 0.03f, color,
+                   std::max(2, dot));
+    }
+  }
+  for (const auto& h : hypotheses) {
     const Eigen::Matrix3f axes = h.box.rotation.toRotationMatrix();
     Eigen::Vector3f corners[8];
     for (int i = 0; i < 8; ++i) {
@@ -313,8 +339,8 @@ std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hyp
 }
 
 void savePicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses, const std::string& path,
-                 const PictureParams& params) {
-  writeFileBytes(path, renderPicture(scene, hypotheses, params));
+                 const PictureParams& params, const Model* model) {
+  writeFileBytes(path, renderPicture(scene, hypotheses, params, model));
 }
 
 void saveDebugPly(const Model& model, const RecognitionResult& result, const std::string& path) {

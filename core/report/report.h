@@ -34,11 +34,13 @@ Eigen::Vector3i categoryColor(const std::string& category);
 
 // The scene's points projected into the sensor (rgb when the scene has colour, else shaded by
 // depth, nearer brighter) with every hypothesis' oriented box drawn as a projected wireframe.
+// With `model`, each verified hypothesis also gets the training shape that fitted it, at its
+// fitted pose, as dots in its category's colour where they are not behind the scene's surface.
 // Returns PNG bytes.
 std::string renderPicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses,
-                          const PictureParams& params = {});
+                          const PictureParams& params = {}, const Model* model = nullptr);
 void savePicture(const Scene& scene, const std::vector<Hypothesis>& hypotheses, const std::string& path,
-                 const PictureParams& params = {});
+                 const PictureParams& params = {}, const Model* model = nullptr);
 
 // Keypoints (white), votes (in their category's colour, brighter = heavier) and hypothesis
 // centres (red) as one coloured PLY. Needs a result of `model` recognised with keep_votes.

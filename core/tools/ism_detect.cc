@@ -53,7 +53,8 @@ int main(int argc, char** argv) {
   app.add_option("--up", up, "the scene's up direction, X,Y,Z in its coordinates, when known (else the floor is found)");
   app.add_option("--max", options.max_hypotheses, "at most N hypotheses (0 = all)")->check(CLI::NonNegativeNumber);
   app.add_flag("--json", json, "print JSON instead of a table");
-  app.add_option("--picture", picture, "write the scene with the boxes drawn as PNG (one input only)");
+  app.add_option("--picture", picture,
+                 "write the scene as PNG with the boxes and the training shapes verification fitted drawn (one input only)");
   app.add_option("--debug-ply", debug_ply, "write keypoints, votes and centres as PLY (one input only)");
   app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
   bool no_verify = false;
@@ -118,7 +119,7 @@ int main(int argc, char** argv) {
         }
         if (scene.image_width > 0) pp.width = scene.image_width, pp.height = scene.image_height;
         if (result.gravity) pp.up = result.gravity->up;
-        ism::savePicture(scene, result.hypotheses, picture, pp);
+        ism::savePicture(scene, result.hypotheses, picture, pp, &model);
       }
       if (!debug_ply.empty()) ism::saveDebugPly(model, result, debug_ply);
     }

@@ -191,6 +191,52 @@ TEST(Report, AMapIsDrawnFromAboveOneSide) {
   EXPECT_EQ(drawn_at_border, 0) << "no box edge runs off the picture";
 }
 
+TEST(Report, WithTheModelAVerifiedHypothesisShowsItsFittedShapeUnlessTheSceneHidesIt) {
+  // A 160x120 frame of a wall 3 m ahead (optical frame). The category's one training shape is a
+  // 0.4 m plate standing on its box's bottom; the box turns its up onto the optical axis, so the
+  // plate faces the sensor: at 2 m it is drawn before the wall, at 4 m the wall hides it.
+  const PictureParams params = kinectLens(160, 120);
+  Scene scene;
+  scene.image_width = params.width;
+  scene.image_height = params.height;
+  for (int v = 0; v < params.height; ++v)
+    for (int u = 0; u < params.width; ++u) {
+      scene.cloud->push_back(PointT((static_cast<float>(u) - params.cx) * 3.0f / params.fx,
+                                    (static_cast<float>(v) - params.cy) * 3.0f / params.fy, 3.0f, 0, 0, 0));
+      scene.pixel_index.push_back(v * params.width + u);
+    }
+  Model model;
+  model.categories.resize(1);
+  model.categories[0].name = "couch";
+  TrainingObject plate;
+  plate.size = Eigen::Vector3f(0.4f, 0.4f, 0.4f);
+  for (float x = -0.2f; x <= 0.2f; x += 0.01f)
+    for (float y = -0.2f; y <= 0.2f; y += 0.01f) plate.surface.emplace_back(x, y, 0.2f);
+  model.categories[0].objects = {plate};
+  const auto hypothesisAt = [](float depth) {
+    Hypothesis h;
+    h.category = "couch";
+    h.box.center = Eigen::Vector3f(0, 0, depth);
+    h.box.size = Eigen::Vector3f(0.4f, 0.4f, 0.4f);
+    h.verification = Verification{};
+    h.verification->object = 0;
+    return h;
+  };
+  const auto changed = [&](const Hypothesis& h) {  // pixels the shape adds to the boxed picture
+    int width = 0, height = 0;
+    const std::vector<uint8_t> boxed = decodeGrey(renderPicture(scene, {h}, params), width, height);
+    const std::vector<uint8_t> shaped = decodeGrey(renderPicture(scene, {h}, params, &model), width, height);
+    int n = 0;
+    for (size_t i = 0; i < boxed.size(); ++i) n += boxed[i] != shaped[i];
+    return n;
+  };
+  EXPECT_GT(changed(hypothesisAt(2.0f)), 300) << "a 0.4 m plate at 2 m covers about 26 x 26 pixels";
+  EXPECT_EQ(changed(hypothesisAt(4.0f)), 0) << "behind the wall";
+  Hypothesis unverified = hypothesisAt(2.0f);
+  unverified.verification.reset();
+  EXPECT_EQ(changed(unverified), 0);
+}
+
 TEST(Report, DebugPlyHoldsKeypointsVotesAndCentres) {
   Model model;
   model.categories.resize(1);
