@@ -26,8 +26,9 @@ struct LocalView {
   std::vector<float> depth;  // the nearest measured depth per pixel; infinity where none
 
   // The pixel of p (relative to the sensor) and its depth, or -1 outside the window.
-  int project(const Eigen::Vector3f& p, float& z) const {
-    const Eigen::Vector3f q = axes * p;
+  int project(const Eigen::Vector3f& p, float& z) const { return projectViewed(axes * p, z); }
+  // The same for q = axes * p, the point in the view's axes.
+  int projectViewed(const Eigen::Vector3f& q, float& z) const {
     z = q.z();
     if (!(z > 0.05f)) return -1;
     const float u = q.x() / z + half, v = q.y() / z + half;
@@ -121,7 +122,6 @@ struct ShapeBuffer {
   std::vector<float> z;    // per pixel, the nearest shape point's depth; infinity where none
   std::vector<int> index;  // and which point it is
   std::vector<int> touched;
-  std::vector<Eigen::Vector3f> placed;
   explicit ShapeBuffer(size_t pixels) : z(pixels, std::numeric_limits<float>::infinity()), index(pixels, -1) {}
 };
 
@@ -133,14 +133,16 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
                     ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr) {
   const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
   const int n = std::min<int>(points, static_cast<int>(shape.size()));
-  buffer.placed.resize(static_cast<size_t>(n));
   buffer.touched.clear();
+  // The pose and the view in one affine map: the shape's points go straight into the view's axes.
+  Eigen::Matrix3f turn;
+  turn << c, -s, 0, s, c, 0, 0, 0, 1;
+  const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
+  const Eigen::Matrix3f to_view = sv.view.axes * turn;
+  const Eigen::Vector3f view_offset = sv.view.axes * offset;
   for (int i = 0; i < n; ++i) {
-    const Eigen::Vector3f& q = shape[static_cast<size_t>(i)];
-    Eigen::Vector3f& placed = buffer.placed[static_cast<size_t>(i)];
-    placed = {c * q.x() - s * q.y() + pose.xy.x(), s * q.x() + c * q.y() + pose.xy.y(), q.z() + sv.floor_z};
     float z = 0;
-    const int pixel = sv.view.project(placed, z);
+    const int pixel = sv.view.projectViewed(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
     if (pixel < 0) continue;
     const size_t p = static_cast<size_t>(pixel);
     if (buffer.index[p] < 0) buffer.touched.push_back(pixel);
@@ -149,7 +151,6 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
       buffer.index[p] = i;
     }
   }
-  const std::vector<Eigen::Vector3f>& placed = buffer.placed;
   Agreement a;
   a.tested = n;
   for (const int pixel : buffer.touched) {
@@ -166,7 +167,7 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     }
     // The measured surface point behind the shape's: on the same ray, at the measured depth.
     const bool cell_needed = explained != nullptr || (sv.claimed != nullptr && !sv.claimed->empty());
-    const uint64_t surface = cell_needed ? cellOf(placed[static_cast<size_t>(index)] * (measured / z), sv.cell) : 0;
+    const uint64_t surface = cell_needed ? cellOf((turn * shape[static_cast<size_t>(index)] + offset) * (measured / z), sv.cell) : 0;
     if (sv.claimed != nullptr && !sv.claimed->empty() && sv.claimed->count(surface) > 0) {
       ++a.claimed;
       continue;
