@@ -75,6 +75,20 @@ PictureParams kinectLens(int width, int height) {
   return params;
 }
 
+// An organized frame through `lens` of a wall `depth` ahead, in the optical frame (z forward).
+Scene wallFrame(const PictureParams& lens, float depth, uint8_t grey) {
+  Scene scene;
+  scene.image_width = lens.width;
+  scene.image_height = lens.height;
+  for (int v = 0; v < lens.height; ++v)
+    for (int u = 0; u < lens.width; ++u) {
+      scene.cloud->push_back(PointT((static_cast<float>(u) - lens.cx) * depth / lens.fx,
+                                    (static_cast<float>(v) - lens.cy) * depth / lens.fy, depth, grey, grey, grey));
+      scene.pixel_index.push_back(v * lens.width + u);
+    }
+  return scene;
+}
+
 TEST(Report, PictureIsAPngOfTheRequestedSizeWithTheBoxDrawn) {
   Scene scene;  // a wall 2 m in front of a sensor at the origin looking along +z
   for (float x = -1; x <= 1; x += 0.01f)
@@ -138,15 +152,7 @@ TEST(Report, AnImageWhosePoseLooksAwayFromItsPointsIsDrawnInItsOwnFrame) {
   // A 160x120 frame of a wall 2 m ahead in the optical frame (z forward), its pose turned 180
   // degrees about x (w 0, x 1), as PCL's test frames (office1.pcd) carry it.
   const PictureParams params = kinectLens(160, 120);
-  Scene scene;
-  scene.image_width = params.width;
-  scene.image_height = params.height;
-  for (int v = 0; v < params.height; ++v)
-    for (int u = 0; u < params.width; ++u) {
-      scene.cloud->push_back(PointT((static_cast<float>(u) - params.cx) * 2.0f / params.fx,
-                                    (static_cast<float>(v) - params.cy) * 2.0f / params.fy, 2.0f, 200, 200, 200));
-      scene.pixel_index.push_back(v * params.width + u);
-    }
+  Scene scene = wallFrame(params, 2.0f, 200);
   scene.has_color = true;
   scene.sensor_orientation = Eigen::Quaternionf(0, 1, 0, 0);
   int width = 0, height = 0;
@@ -196,15 +202,7 @@ TEST(Report, WithTheModelAVerifiedHypothesisShowsItsFittedShapeUnlessTheSceneHid
   // 0.4 m plate standing on its box's bottom; the box turns its up onto the optical axis, so the
   // plate faces the sensor: at 2 m it is drawn before the wall, at 4 m the wall hides it.
   const PictureParams params = kinectLens(160, 120);
-  Scene scene;
-  scene.image_width = params.width;
-  scene.image_height = params.height;
-  for (int v = 0; v < params.height; ++v)
-    for (int u = 0; u < params.width; ++u) {
-      scene.cloud->push_back(PointT((static_cast<float>(u) - params.cx) * 3.0f / params.fx,
-                                    (static_cast<float>(v) - params.cy) * 3.0f / params.fy, 3.0f, 0, 0, 0));
-      scene.pixel_index.push_back(v * params.width + u);
-    }
+  const Scene scene = wallFrame(params, 3.0f, 0);
   Model model;
   model.categories.resize(1);
   model.categories[0].name = "couch";
