@@ -5,7 +5,6 @@
 #include <limits>
 #include <map>
 #include <string>
-#include <tuple>
 
 #include <Eigen/Geometry>
 
@@ -25,10 +24,9 @@ struct LocalView {
   int width = 0;
   std::vector<float> depth;  // the nearest measured depth per pixel; infinity where none
 
-  // The pixel of p (relative to the sensor) and its depth, or -1 outside the window.
-  int project(const Eigen::Vector3f& p, float& z) const { return projectViewed(axes * p, z); }
-  // The same for q = axes * p, the point in the view's axes.
-  int projectViewed(const Eigen::Vector3f& q, float& z) const {
+  // The pixel of q, a point in the view's axes (axes * p for p relative to the sensor), and its
+  // depth, or -1 outside the window.
+  int project(const Eigen::Vector3f& q, float& z) const {
     z = q.z();
     if (!(z > 0.05f)) return -1;
     const float u = q.x() / z + half, v = q.y() / z + half;
@@ -119,10 +117,10 @@ struct ShapeView {
 // A z-buffer of the shape's points over a LocalView's pixels, kept between poses: only the
 // pixels a pose touched are cleared after it.
 struct ShapeBuffer {
-  std::vector<float> z;    // per pixel, the nearest shape point's depth; infinity where none
-  std::vector<int> index;  // and which point it is
+  std::vector<int> index;  // per pixel, the nearest shape point; -1 where none
+  std::vector<float> z;    // its depth, where index is set
   std::vector<int> touched;
-  explicit ShapeBuffer(size_t pixels) : z(pixels, std::numeric_limits<float>::infinity()), index(pixels, -1) {}
+  explicit ShapeBuffer(size_t pixels) : index(pixels, -1), z(pixels, 0.0f) {}
 };
 
 // The front-most of the shape's first `points` points per pixel against the measured depth there.
@@ -142,7 +140,7 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
   const Eigen::Vector3f view_offset = sv.view.axes * offset;
   for (int i = 0; i < n; ++i) {
     float z = 0;
-    const int pixel = sv.view.projectViewed(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
+    const int pixel = sv.view.project(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
     if (pixel < 0) continue;
     const size_t p = static_cast<size_t>(pixel);
     if (buffer.index[p] < 0) buffer.touched.push_back(pixel);
@@ -151,12 +149,14 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
       buffer.index[p] = i;
     }
   }
+  // The measured surface's cell is wanted only to check or record what a hypothesis explains.
+  const bool check_claimed = sv.claimed != nullptr && !sv.claimed->empty();
+  const bool cell_needed = check_claimed || explained != nullptr;
   Agreement a;
   a.tested = n;
   for (const int pixel : buffer.touched) {
     const float z = buffer.z[static_cast<size_t>(pixel)];
     const int index = buffer.index[static_cast<size_t>(pixel)];
-    buffer.z[static_cast<size_t>(pixel)] = std::numeric_limits<float>::infinity();
     buffer.index[static_cast<size_t>(pixel)] = -1;
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];
     const float m = depthMargin(z, sv.margin);
@@ -166,9 +166,8 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
       continue;
     }
     // The measured surface point behind the shape's: on the same ray, at the measured depth.
-    const bool cell_needed = explained != nullptr || (sv.claimed != nullptr && !sv.claimed->empty());
     const uint64_t surface = cell_needed ? cellOf((turn * shape[static_cast<size_t>(index)] + offset) * (measured / z), sv.cell) : 0;
-    if (sv.claimed != nullptr && !sv.claimed->empty() && sv.claimed->count(surface) > 0) {
+    if (check_claimed && sv.claimed->count(surface) > 0) {
       ++a.claimed;
       continue;
     }

@@ -277,13 +277,11 @@ std::string renderPicture(const Scene& given, const std::vector<Hypothesis>& hyp
 
   constexpr float kNearPlane = 0.05f;  // edges are clipped here so that nothing behind the sensor projects
   for (const auto& h : hypotheses) {
-    const CategoryModel* category = nullptr;  // by name here: reports link no model library
-    if (model != nullptr && h.verification) {
-      for (const auto& c : model->categories) {
-        if (c.name == h.category) category = &c;
-      }
-    }
-    if (category == nullptr || h.verification->object < 0 ||
+    if (model == nullptr || !h.verification) continue;
+    // By name here (Model::find is in the model library, which reports do not link).
+    const auto category = std::find_if(model->categories.begin(), model->categories.end(),
+                                       [&](const CategoryModel& c) { return c.name == h.category; });
+    if (category == model->categories.end() || h.verification->object < 0 ||
         h.verification->object >= static_cast<int>(category->objects.size())) {
       continue;
     }
