@@ -198,8 +198,7 @@ VerificationScene makeVerificationScene(const Scene& scene, const std::optional<
 }
 
 bool hasShapes(const CategoryModel& category) {
-  return !category.objects.empty() &&
-         std::all_of(category.objects.begin(), category.objects.end(), [](const TrainingObject& o) { return !o.surface.empty(); });
+  return std::any_of(category.objects.begin(), category.objects.end(), [](const TrainingObject& o) { return !o.surface.empty(); });
 }
 
 std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
@@ -211,6 +210,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   const float floor_z = scene.floor_z.value_or(center.z() - box.size.z() / 2);
   float reach = 0, height = 0, side = 0;  // the farthest any shape reaches from its middle; the tallest; the longest
   for (const auto& o : category.objects) {
+    if (o.surface.empty()) continue;
     reach = std::max(reach, 0.5f * o.size.norm());
     height = std::max(height, o.size.z());
     side = std::max(side, o.size.head<2>().maxCoeff());
@@ -225,6 +225,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f};
   std::vector<std::pair<float, Pose>> coarse;
   for (size_t o = 0; o < category.objects.size(); ++o) {
+    if (category.objects[o].surface.empty()) continue;  // a shape calibration holds out
     for (int y = 0; y < params.coarse_yaws; ++y) {
       for (int dx = -params.coarse_steps; dx <= params.coarse_steps; ++dx) {
         for (int dy = -params.coarse_steps; dy <= params.coarse_steps; ++dy) {

@@ -56,7 +56,8 @@ struct VerificationScene {
 VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
                                         const VerificationParams& params = {});
 
-// Whether `category` keeps training shapes to verify with.
+// Whether `category` keeps training shapes to verify with. Objects without a surface are not
+// tried (calibration holds out the shapes of the objects its rooms show).
 bool hasShapes(const CategoryModel& category);
 
 // The best pose of the category's shapes at `hypothesis` (its upright box gives the heading to

@@ -35,8 +35,10 @@ Mesh boxMesh(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
   return mesh;
 }
 
-// The model with the votes of the training objects in `held_out` (per category, per model index)
-// left out: what recognises the fold's rooms.
+// The model with the votes and the verification shapes of the training objects in `held_out` (per
+// category, per model index) left out: what recognises the fold's rooms. The rooms show exactly
+// those objects, and the world shows none of the training objects: fitting their own shapes
+// would teach the calibration fits no real object reaches.
 Model foldModel(const Model& model, const std::vector<std::vector<TrainingVote>>& votes,
                 const std::vector<std::vector<bool>>& held_out) {
   Model fold;
@@ -52,6 +54,9 @@ Model foldModel(const Model& model, const std::vector<std::vector<TrainingVote>>
     category.calibration.reset();
     category.global_votes = packVotes(votes[c], model.global_codebook->size(), held_out[c]);
     category.global_votes.codeword_weights = model.categories[c].global_votes.codeword_weights;
+    for (size_t m = 0; m < category.objects.size() && m < held_out[c].size(); ++m) {
+      if (held_out[c][m]) category.objects[m].surface.clear();
+    }
     fold.categories.push_back(std::move(category));
   }
   return fold;

@@ -138,6 +138,24 @@ TEST(Verification, NothingToSayFromInsideOrWithoutShapes) {
   EXPECT_FALSE(verify(scene, bare, chairAt(room, kChairX, kChairY, kChairYaw)).has_value());
 }
 
+TEST(Verification, ShapesHeldOutAreNotTried) {
+  // Calibration clears the shapes of the objects its rooms show, as the world shows none of them:
+  // the chair's own shape held out, only the table's is left to fit, and it fits worse.
+  const Room room = chairBeforeWall();
+  const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
+  CategoryModel held_out = room.chairs;
+  held_out.objects[1].surface.clear();
+  EXPECT_TRUE(hasShapes(held_out));
+  const Hypothesis chair = chairAt(room, kChairX, kChairY, kChairYaw);
+  const auto own = verify(scene, room.chairs, chair);
+  const auto other = verify(scene, held_out, chair);
+  ASSERT_TRUE(own.has_value());
+  ASSERT_TRUE(other.has_value());
+  EXPECT_EQ(own->object, 1);
+  EXPECT_EQ(other->object, 0) << "the held-out shape was tried";
+  EXPECT_LT(other->fit(), own->fit());
+}
+
 TEST(Verification, VerifiedHypothesesGetTheFittedShapesBox) {
   const Room room = chairBeforeWall();
   Model model;
