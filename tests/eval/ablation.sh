@@ -70,47 +70,22 @@ for step in "${steps[@]}"; do
     seconds=$(echo "$(date +%s.%N) - $start" | bc)
     echo "$seconds" > "$work/$name.seconds"
   fi
-  for subset in all organized unorganized; do
-    case $subset in
-      all) scenes=("$real/kinect" "$root/models/sample/living_room.json" "$real/sunrgbd" "$real/scannet") ;;
-      organized) scenes=("$real/kinect" "$root/models/sample/living_room.json") ;;
-      unorganized) scenes=("$real/sunrgbd" "$real/scannet") ;;
-    esac
-    # AP over every candidate (the whole precision-recall curve); r and FP per scan at the default
-    # operating point, min_confidence 0.5. The seed's preset has no confidence threshold.
-    operating=--min-confidence=0.01
-    [[ $subset == all ]] && operating=--min-confidence=0.5
-    # shellcheck disable=SC2086
-    "$build/core/ism-eval" real -m "$model" "${scenes[@]}" $eval_args $operating --json "$work/$name.$subset.json" \
-      > "$work/$name.$subset.txt" 2> /dev/null
-  done
+  # shellcheck disable=SC2086
+  "$root/tests/eval/real_eval.sh" "$build" "$model" "$work/$name" $eval_args
   rows+=("$name|$what|$seconds")
   echo "ablation: $name done" >&2
 done
 
-/usr/bin/python3 - "$work" "${rows[@]}" > "$out" <<'PY'
-import json, math, sys
+PYTHONPATH=$root/tests/eval /usr/bin/python3 - "$work" "${rows[@]}" > "$out" <<'PY'
+import sys
+from real_row import figures, pct
 work, rows = sys.argv[1], sys.argv[2:]
-
-def classes(path):
-    return {c["class"]: c for c in json.load(open(path))["combinations"][0]["classes"]}
-
-def pct(v):
-    return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.1f}"
-
 print("| step | Kinect + sample mAP@0.25 | SUN RGB-D + ScanNet mAP@0.25 | their chair / table / sofa AP@0.25 "
       "| chair r at 0.5 | FP per scan at 0.5 | training s |")
 print("|---|---|---|---|---|---|---|")
 for row in rows:
     name, what, seconds = row.split("|")
-    everything = classes(f"{work}/{name}.all.json")
-    org, unorg = classes(f"{work}/{name}.organized.json"), classes(f"{work}/{name}.unorganized.json")
-    def map25(cs):
-        aps = [c["ap25"] for c in cs.values() if c["objects"] > 0 and c["ap25"] is not None]
-        return sum(aps) / len(aps) if aps else None
-    per_class = " / ".join(pct(unorg[c]["ap25"]) for c in ("chair", "table|desk", "sofa"))
-    scenes = max(c["scenes"] for c in everything.values())
-    fp = sum(c["fp"] for c in everything.values())
-    print(f"| {what} | {pct(map25(org))} | {pct(map25(unorg))} | {per_class} | {pct(everything['chair']['rate'])} "
-          f"| {fp / scenes:.1f} | {float(seconds):.0f} |")
+    f = figures(f"{work}/{name}")
+    print(f"| {what} | {pct(f['frames'])} | {pct(f['clouds'])} | {' / '.join(pct(v) for v in f['per_class'])} "
+          f"| {pct(f['chair_r'])} | {f['fp_per_scan']:.1f} | {float(seconds):.0f} |")
 PY
