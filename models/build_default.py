@@ -67,8 +67,9 @@ def main():
     ap.add_argument("--furniture-dir", default="/usr/share/sweethome3d/furniture")
     ap.add_argument("--work", default=os.path.join(HERE, "..", "build", "default-model-src"))
     ap.add_argument("--skip-training", action="store_true", help="only remake the sample scene")
-    ap.add_argument("--background", action="store_true",
-                    help="also train on the background meshes of default/background.tsv (core/training/background.h)")
+    ap.add_argument("--no-background", dest="background", action="store_false",
+                    help="leave out the background meshes of default/background.tsv (core/training/background.h), "
+                         "which weigh the categories' codewords")
     ap.add_argument("--manifest-only", action="store_true",
                     help="only extract the meshes and write WORK/manifest.tsv (no training, no sample scene, no credits)")
     args = ap.parse_args()

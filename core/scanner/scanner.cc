@@ -276,7 +276,7 @@ std::vector<Eigen::Isometry3f> viewRing(const Mesh& placed_mesh, const ViewRingP
     const float half_width = std::min(intrinsics.cx + 0.5f, intrinsics.width - 0.5f - intrinsics.cx);
     const float half_height = std::min(intrinsics.cy + 0.5f, intrinsics.height - 0.5f - intrinsics.cy);
     const float half_fov = std::min(std::atan(half_width / intrinsics.fx), std::atan(half_height / intrinsics.fy));
-    distance = 1.1f * (box.sizes().norm() / 2) / std::sin(half_fov);
+    distance = std::max(params.min_distance, 1.1f * (box.sizes().norm() / 2) / std::sin(half_fov));
   }
   const float elevation = params.elevation_deg * static_cast<float>(M_PI) / 180.0f;
   std::vector<Eigen::Isometry3f> poses;

@@ -59,6 +59,7 @@ struct ViewRingParams {
   int views = 12;                // around the object, evenly spaced in azimuth
   float elevation_deg = 20.0f;   // cameras slightly above the object (seed Fig. 3.4)
   float distance = 0.0f;         // camera to object centre (m); 0 = fit the object in view
+  float min_distance = 0.0f;     // with distance 0: at least this far (m)
 };
 // Camera poses around the placed mesh, all looking at its bounding-box centre; view 0 faces
 // the front (-y). The automatic distance fits the bounding sphere into `intrinsics`' view.

@@ -45,6 +45,9 @@ int main(int argc, char** argv) {
                  "codewords each descriptor activates (k-NN activation), with which thresholds and calibration are made")
       ->check(CLI::Range(1, 32));
   app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
+  app.add_option("--view-distance", params.views.min_distance,
+                 "training cameras at least this far from the object (m); 0 = as near as it fits in view")
+      ->check(CLI::Range(0.0f, 20.0f));
   bool seed_front_end = false;
   auto* seed_front_end_opt = app.add_flag("--seed-front-end", seed_front_end,
                "the seed's scales (1 cm voxels, 3 cm normals, 8 cm SHOT) instead of the default 3 / 7.5 / 18 cm");

@@ -290,6 +290,7 @@ TrainingParams seedTrainingParams() {
   params.calibration.enabled = false;
   params.shape_spacing = 0;
   params.noise.projector_shadow = false;
+  params.views.min_distance = 0;
   return params;
 }
 

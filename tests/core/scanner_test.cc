@@ -439,6 +439,21 @@ TEST(ViewRing, TwelveViewsAroundAndAboveEachSeeTheWholeObject) {
   EXPECT_EQ(azimuths.count(-90), 1u);  // the first view faces the front (-y)
 }
 
+TEST(ViewRing, AMinimumDistanceMovesSmallObjectsOutAndLeavesLargeOnesWhole) {
+  const Mesh chair = syntheticFurniture("dining_chair", 0);
+  const float fitted = (viewRing(chair, ViewRingParams{}).front().translation() - chair.bounds().center()).norm();
+  ViewRingParams far;
+  far.min_distance = 3.5f;
+  ASSERT_LT(fitted, far.min_distance);
+  for (const Eigen::Isometry3f& pose : viewRing(chair, far)) {
+    EXPECT_NEAR((pose.translation() - chair.bounds().center()).norm(), 3.5f, 1e-4f);
+  }
+  far.min_distance = 0.5f * fitted;  // nearer than the object fits in view: the fitted distance stands
+  EXPECT_NEAR((viewRing(chair, far).front().translation() - chair.bounds().center()).norm(), fitted, 1e-4f);
+  far.distance = 1.0f;  // a fixed distance wins over both
+  EXPECT_NEAR((viewRing(chair, far).front().translation() - chair.bounds().center()).norm(), 1.0f, 1e-4f);
+}
+
 TEST(ComposeScene, GroundTruthMatchesTheMeshesAndLabelsThePoints) {
   std::vector<SceneObject> objects(2);
   objects[0] = {"dining_table", syntheticFurniture("dining_table", 0), 0.3f, 0.6f, 0.4f};

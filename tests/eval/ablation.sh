@@ -20,15 +20,17 @@ real=$root/../shared/data/real
 work=$build/ablation
 mkdir -p "$work"
 manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
-           --manifest-only)
-# The last row's manifest adds the background meshes (models/default/background.tsv).
+           --no-background --manifest-only)
+# From the background row on, the manifest adds the background meshes (models/default/background.tsv).
 background_manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" \
-                      --work "$build/background-model-src" --background --manifest-only)
+                      --work "$build/background-model-src" --manifest-only)
 
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
-old="--seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
-fine="--seed-front-end --no-cloud-calibration --no-verification"
+# Rows before the far training views see each mesh as near as it fits in view.
+near="--view-distance 0"
+old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
+fine="$near --seed-front-end --no-cloud-calibration --no-verification"
 # name | ism-train options (=ROW: that row's model) | ism-eval options | what the row adds
 steps=(
   "seed|--preset seed|--preset seed|the seed's pipeline (LRF votes, leave-one-out thresholds, box selection)"
@@ -39,11 +41,12 @@ steps=(
   "calibrated|$old --cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
   "range-image|$old|--preset default|+ unorganized clouds: contours of the range image from the sensor"
   "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
-  "coarse|--no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
-  "clouds|--no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
-  "verified||--preset default --centre-suppression|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
-  "surface|=verified|--preset default|+ one object across categories only where one explains the other's verified surface (the default)"
-  "background||--preset default|+ codewords weighed against 21 background meshes (optional: manifest rows of category background)"
+  "coarse|$near --no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
+  "clouds|$near --no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
+  "verified|$near|--preset default --centre-suppression|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
+  "surface|=verified|--preset default|+ one object across categories only where one explains the other's verified surface"
+  "far-views||--preset default|+ training views from 3.5 m rather than as near as the object fits in view"
+  "background||--preset default|+ codewords weighed against 21 background meshes (the default; manifest rows of category background)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
@@ -65,7 +68,7 @@ for step in "${steps[@]}"; do
   else
     start=$(date +%s.%N)
     # shellcheck disable=SC2086
-    "$build/core/ism-train" --manifest "$([[ $name == background ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
+    "$build/core/ism-train" --manifest "$([[ $name == background || $name == kinect-window ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
       > "$work/$name.train.log"
     seconds=$(echo "$(date +%s.%N) - $start" | bc)
     echo "$seconds" > "$work/$name.seconds"

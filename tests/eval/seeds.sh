@@ -5,7 +5,9 @@
 # variant is therefore trained with the same seeds and compared seed by seed with the first.
 #   tests/eval/seeds.sh BUILD_DIR OUTPUT.md "NAME|ISM-TRAIN OPTIONS|WHAT" ... [-- SEED...]
 # Seeds default to 1 2 3 4. About 2 minutes per variant and seed on 2 cores. Models, ism-eval's
-# JSON and the training logs stay in BUILD_DIR/seeds/.
+# JSON and the training logs stay in BUILD_DIR/seeds/; with ISM_SEEDS_REUSE=1 a variant and seed
+# evaluated there before is not trained again. The option --background (not ism-train's) trains on
+# the manifest with the background meshes (models/default/background.tsv), as ablation.sh's row.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "$1" && pwd)
@@ -22,15 +24,26 @@ real=$root/../shared/data/real
 work=$build/seeds
 mkdir -p "$work"
 manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
-           --manifest-only)
+           --no-background --manifest-only)
+background_manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" \
+                      --work "$build/background-model-src" --manifest-only)
 names=()
 for variant in "${variants[@]}"; do
   IFS='|' read -r name train_args what <<< "$variant"
   names+=("$name|$what")
+  use=$manifest
+  if [[ " $train_args " == *" --background "* ]]; then
+    use=$background_manifest
+    train_args=${train_args//--background/}
+  fi
   for seed in "${seeds[@]}"; do
     model=$work/$name.$seed.ismm
+    if [[ ${ISM_SEEDS_REUSE:-0} == 1 && -f $work/$name.$seed.unorganized.json ]]; then
+      echo "seeds: $name seed $seed kept" >&2
+      continue
+    fi
     # shellcheck disable=SC2086
-    "$build/core/ism-train" --manifest "$manifest" -o "$model" --codebook global --no-scene-smoothing --seed "$seed" \
+    "$build/core/ism-train" --manifest "$use" -o "$model" --codebook global --no-scene-smoothing --seed "$seed" \
       $train_args > "$work/$name.$seed.train.log"
     "$root/tests/eval/real_eval.sh" "$build" "$model" "$work/$name.$seed"
     echo "seeds: $name seed $seed done" >&2
