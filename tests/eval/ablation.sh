@@ -15,15 +15,10 @@ root=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "${1:-$root/build}" && pwd)
 out=${2:-/dev/stdout}
 only=("${@:3}")
-real=$root/../shared/data/real
-[[ -d $real ]] || { echo "skipped: $real is absent (development data, see ../shared/docs/DATASETS.md)"; exit 0; }
+# shellcheck source=tests/eval/common.sh
+source "$root/tests/eval/common.sh"
 work=$build/ablation
 mkdir -p "$work"
-manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
-           --no-background --manifest-only)
-# From the background row on, the manifest adds the background meshes (models/default/background.tsv).
-background_manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" \
-                      --work "$build/background-model-src" --manifest-only)
 
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.

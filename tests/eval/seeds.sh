@@ -19,14 +19,10 @@ while (($#)) && [[ $1 != -- ]]; do variants+=("$1"); shift; done
 seeds=("$@")
 ((${#seeds[@]})) || seeds=(1 2 3 4)
 ((${#variants[@]})) || { echo "usage: $0 BUILD_DIR OUTPUT.md \"NAME|ISM-TRAIN OPTIONS|WHAT\"... [-- SEED...]" >&2; exit 2; }
-real=$root/../shared/data/real
-[[ -d $real ]] || { echo "skipped: $real is absent (development data, see ../shared/docs/DATASETS.md)"; exit 0; }
+# shellcheck source=tests/eval/common.sh
+source "$root/tests/eval/common.sh"
 work=$build/seeds
 mkdir -p "$work"
-manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" --work "$build/default-model-src" \
-           --no-background --manifest-only)
-background_manifest=$(/usr/bin/python3 "$root/models/build_default.py" --bin "$build/core" \
-                      --work "$build/background-model-src" --manifest-only)
 names=()
 for variant in "${variants[@]}"; do
   IFS='|' read -r name train_args what <<< "$variant"
