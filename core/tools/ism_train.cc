@@ -93,8 +93,8 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 21));
   app.add_option("--calibration-rooms", params.calibration.rooms_per_fold, "rendered rooms per calibration fold")
       ->check(CLI::PositiveNumber);
-  std::optional<uint32_t> seed;
-  app.add_option("--seed", seed,
+  std::optional<uint32_t> training_seed;
+  app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "
                  "several seeds tell a method's effect from chance (tests/eval/seeds.sh)");
   bool no_scene_smoothing = false;
@@ -118,12 +118,12 @@ int main(int argc, char** argv) {
     params.front_end.shot = seed.shot;
   }
   if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
-  if (seed) {
+  if (training_seed) {
     // Distinct streams per use, each a function of the one seed.
-    params.global_kmeans.seed = *seed * 7919u + 1u;
-    params.separated_kmeans.seed = *seed * 7919u + 2u;
-    params.noise.seed = *seed * 7919u + 3u;
-    params.calibration.seed = *seed * 7919u + 4u;
+    params.global_kmeans.seed = *training_seed * 7919u + 1u;
+    params.separated_kmeans.seed = *training_seed * 7919u + 2u;
+    params.noise.seed = *training_seed * 7919u + 3u;
+    params.calibration.seed = *training_seed * 7919u + 4u;
   }
   if (!vote_frame.empty()) params.voting.frame = vote_frame == "lrf" ? ism::VoteFrame::kLrf : ism::VoteFrame::kUpright;
   if (no_gravity) {
