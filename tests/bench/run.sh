@@ -55,9 +55,12 @@ echo "== ism-bench ($repetitions repetitions)" >&2
 "$build/tests/bench/ism-bench" --benchmark_repetitions="$repetitions" --benchmark_report_aggregates_only=true \
   --benchmark_out="$out/bench.json" --benchmark_out_format=json >&2
 
-manifest=$("$py" "$root/tests/bench/make_manifest.py" --work "$build/bench-default-model-src")
+# The shipped model's meshes as models/build_default.py extracts them, without touching models/.
 # The shipped model also trains on the background meshes; PCL's ISM has no use for them.
-shipped_manifest=$("$py" "$root/tests/bench/make_manifest.py" --work "$build/bench-shipped-model-src" --background)
+manifest=$("$py" "$root/models/build_default.py" --bin "$build/core" --work "$build/bench-default-model-src" \
+           --no-background --manifest-only)
+shipped_manifest=$("$py" "$root/models/build_default.py" --bin "$build/core" --work "$build/bench-shipped-model-src" \
+                   --manifest-only)
 if (( skip_training )); then
   echo '{"skipped": "skipped (--skip-training)"}' >"$out/training.json"
 else
