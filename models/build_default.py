@@ -70,12 +70,14 @@ def main():
     ap.add_argument("--no-background", dest="background", action="store_false",
                     help="leave out the background meshes of default/background.tsv (core/training/background.h), "
                          "which weigh the categories' codewords")
+    ap.add_argument("--selection", default=os.path.join(HERE, "default", "selection.tsv"),
+                    help="the meshes to train on and the sample scene's, in selection.tsv's columns")
     ap.add_argument("--manifest-only", action="store_true",
                     help="only extract the meshes and write WORK/manifest.tsv (no training, no sample scene, no credits)")
     args = ap.parse_args()
 
     os.makedirs(args.work, exist_ok=True)
-    with open(os.path.join(HERE, "default", "selection.tsv")) as f:
+    with open(args.selection) as f:
         rows = list(csv.DictReader((l for l in f if not l.startswith("#")), delimiter="\t"))
     if args.background:
         with open(os.path.join(HERE, "default", "background.tsv")) as f:

@@ -7,7 +7,8 @@
 # Seeds default to 1 2 3 4. About 2 minutes per variant and seed on 2 cores. Models, ism-eval's
 # JSON and the training logs stay in BUILD_DIR/seeds/; with ISM_SEEDS_REUSE=1 a variant and seed
 # evaluated there before is not trained again. The option --background (not ism-train's) trains on
-# the manifest with the background meshes (models/default/background.tsv), as ablation.sh's row.
+# the manifest with the background meshes (models/default/background.tsv), as ablation.sh's row;
+# with ism-train's --manifest among the options, that manifest is trained on instead.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "$1" && pwd)
@@ -27,9 +28,11 @@ names=()
 for variant in "${variants[@]}"; do
   IFS='|' read -r name train_args what <<< "$variant"
   names+=("$name|$what")
-  use=$manifest
-  if [[ " $train_args " == *" --background "* ]]; then
-    use=$background_manifest
+  use=(--manifest "$manifest")
+  if [[ " $train_args " == *" --manifest "* ]]; then
+    use=()
+  elif [[ " $train_args " == *" --background "* ]]; then
+    use=(--manifest "$background_manifest")
     train_args=${train_args//--background/}
   fi
   for seed in "${seeds[@]}"; do
@@ -39,7 +42,7 @@ for variant in "${variants[@]}"; do
       continue
     fi
     # shellcheck disable=SC2086
-    "$build/core/ism-train" --manifest "$use" -o "$model" --codebook global --no-scene-smoothing --seed "$seed" \
+    "$build/core/ism-train" "${use[@]}" -o "$model" --codebook global --no-scene-smoothing --seed "$seed" \
       $train_args > "$work/$name.$seed.train.log"
     "$root/tests/eval/real_eval.sh" "$build" "$model" "$work/$name.$seed"
     echo "seeds: $name seed $seed done" >&2
