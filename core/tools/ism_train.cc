@@ -93,6 +93,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 21));
   app.add_option("--calibration-rooms", params.calibration.rooms_per_fold, "rendered rooms per calibration fold")
       ->check(CLI::PositiveNumber);
+  app.add_option("--calibration-background", params.calibration.background_objects,
+                 "background meshes of the manifest placed in each calibration room (0 to this many)")
+      ->check(CLI::NonNegativeNumber);
   std::optional<uint32_t> training_seed;
   app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "

@@ -15,6 +15,7 @@
 #include "core/recognition/suppression.h"
 #include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
+#include "core/training/background.h"
 #include "core/training/parallel_for.h"
 #include "core/training/votes.h"
 
@@ -62,15 +63,11 @@ Model foldModel(const Model& model, const std::vector<std::vector<TrainingVote>>
   return fold;
 }
 
-struct Room {
-  SyntheticScene scene;
-  std::vector<std::string> categories;  // of scene.objects, furniture first, then clutter ("")
-};
+}  // namespace
 
-// Up to max_objects of `candidates` (held-out furniture) standing apart on the floor, a wall or
-// two behind them, a few boxes, seen from a random camera.
-Room composeRoom(const std::vector<const PlacedObject*>& candidates, const CalibrationParams& params,
-                 const NoiseParams& noise, std::mt19937& rng) {
+CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& furniture,
+                                       const std::vector<const PlacedObject*>& background,
+                                       const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng) {
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   const auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
   std::vector<SceneObject> objects;
@@ -88,10 +85,10 @@ Room composeRoom(const std::vector<const PlacedObject*>& candidates, const Calib
     }
     return false;
   };
-  Room room;
-  const int furniture = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_objects));
-  for (int i = 0; i < std::min<int>(furniture, static_cast<int>(candidates.size())); ++i) {
-    const PlacedObject& o = *candidates[static_cast<size_t>(unit(rng) * static_cast<float>(candidates.size())) % candidates.size()];
+  CalibrationRoom room;
+  const int count = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_objects));
+  for (int i = 0; i < std::min<int>(count, static_cast<int>(furniture.size())); ++i) {
+    const PlacedObject& o = *furniture[static_cast<size_t>(unit(rng) * static_cast<float>(furniture.size())) % furniture.size()];
     const Eigen::Vector3f size = o.mesh->bounds().sizes();
     Eigen::Vector2f at;
     if (!place(0.5f * std::hypot(size.x(), size.y()), at)) continue;
@@ -109,6 +106,14 @@ Room composeRoom(const std::vector<const PlacedObject*>& candidates, const Calib
     objects.push_back({"", boxMesh(-size.cwiseProduct(Eigen::Vector3f(0.5f, 0.5f, 0)), size.cwiseProduct(Eigen::Vector3f(0.5f, 0.5f, 1))),
                        at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
   }
+  const int others = background.empty() ? 0 : static_cast<int>(unit(rng) * static_cast<float>(params.background_objects + 1));
+  for (int i = 0; i < others; ++i) {
+    const PlacedObject& o = *background[static_cast<size_t>(unit(rng) * static_cast<float>(background.size())) % background.size()];
+    const Eigen::Vector3f size = o.mesh->bounds().sizes();
+    Eigen::Vector2f at;
+    if (!place(0.5f * std::hypot(size.x(), size.y()), at)) continue;
+    objects.push_back({"", *o.mesh, at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
+  }
   SyntheticSceneParams scene;
   const float azimuth = uniform(-2.4f, -0.7f);  // from the open side, facing the far wall
   const float distance = uniform(params.distance_min, params.distance_max);
@@ -121,6 +126,8 @@ Room composeRoom(const std::vector<const PlacedObject*>& candidates, const Calib
   room.scene = composeScene(objects, scene);
   return room;
 }
+
+namespace {
 
 // The room's frame as an unorganized cloud: a random `fraction` of its points, no image grid.
 Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
@@ -139,7 +146,7 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
 
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
 // positive, every other peak that is not another peak of that object a negative.
-void labelPeaks(const Model& model, const Room& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
+void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
                 const VerificationScene& view, bool cloud, std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
@@ -195,13 +202,14 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
   for (int fold = 0; fold < cp.folds; ++fold) {
     // A category's fold holds models m with m % folds == fold, unless that would leave it none.
     std::vector<std::vector<bool>> held_out(model.categories.size());
-    std::vector<const PlacedObject*> candidates;
+    std::vector<const PlacedObject*> candidates, background;
     for (size_t c = 0; c < model.categories.size(); ++c) {
       held_out[c].assign(static_cast<size_t>(models[c]), false);
       for (int m = fold; m < models[c]; m += cp.folds) held_out[c][static_cast<size_t>(m)] = true;
       if (std::count(held_out[c].begin(), held_out[c].end(), false) == 0) std::fill(held_out[c].begin(), held_out[c].end(), false);
     }
     for (const auto& o : objects) {
+      if (o.category == kBackgroundCategory) background.push_back(&o);
       const CategoryModel* c = model.find(o.category);
       if (c == nullptr) continue;
       const auto index = static_cast<size_t>(c - model.categories.data());
@@ -217,7 +225,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     options.one_answer_per_object = false;
     parallelFor(cp.rooms_per_fold, trainingThreads(params.threads), [&](int r) {
       std::mt19937 rng(cp.seed + static_cast<uint32_t>(fold * 100003 + r));
-      const Room room = composeRoom(candidates, cp, params.noise, rng);
+      const CalibrationRoom room = composeCalibrationRoom(candidates, background, cp, params.noise, rng);
       if (room.scene.scene.cloud->size() < 1000) return;  // the camera saw next to nothing
       std::vector<CalibrationSample> found;
       const auto look = [&](const Scene& scene, bool cloud) {

@@ -4,11 +4,13 @@
 // training scans and the world (a held-out training scan shows the whole object up close, a
 // room shows part of it among clutter). So each category's scores are mapped to a probability,
 // fitted to what the model finds in scenes that look like the world: rendered rooms with a
-// floor, walls and boxes, furniture the model was not trained on (k-fold over the training
-// objects, votes of the held-out fold left out), cameras at a robot's and a person's height.
+// floor, walls, boxes and the manifest's background meshes, furniture the model was not trained
+// on (k-fold over the training objects, votes of the held-out fold left out), cameras at a
+// robot's and a person's height.
 // Every peak of a category is labelled by whether an object of that category is there; a
 // logistic regression over the log score, the log score per supporting keypoint and, where the
 // model keeps training shapes, the verification's fit gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
+#include <random>
 #include <string>
 #include <vector>
 
@@ -24,6 +26,20 @@ struct PlacedObject {
   int model_index = 0;  // TrainingScan::model_index
   const Mesh* mesh = nullptr;  // upright on z = 0 (placeMesh)
 };
+
+// One rendered room of the calibration.
+struct CalibrationRoom {
+  SyntheticScene scene;
+  std::vector<std::string> categories;  // of scene.objects, furniture first, then clutter ("")
+};
+
+// Up to params.max_objects of `furniture` (the fold's held-out objects) standing apart on the
+// floor, a wall or two behind them, boxes, and up to params.background_objects of `background`
+// (beds, cabinets, shelves: real rooms' false peaks stand on such furniture, which fits a couch's
+// or a table's shape far better than a box does), seen by `noise`'s sensor from a random camera.
+CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& furniture,
+                                       const std::vector<const PlacedObject*>& background,
+                                       const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng);
 
 // One labelled peak: its score and support and whether an object of its category was there.
 struct CalibrationSample {

@@ -20,6 +20,7 @@ struct CalibrationParams {
   int rooms_per_fold = 40;
   int max_objects = 3;        // furniture per room (1..max)
   int clutter_boxes = 3;      // boxes, cabinets and shelves per room (0..max)
+  int background_objects = 2; // background meshes (background.h) per room (0..max), where training has them
   float camera_height_min = 0.6f, camera_height_max = 1.8f;  // a robot's to a person's
   float distance_min = 1.5f, distance_max = 4.0f;             // camera to the room's middle (m)
   // Each room is also seen as an unorganized point sample, a random fraction of the frame's points

@@ -1,5 +1,6 @@
 // The calibration's logistic fit: the confidence follows whichever of score and verification fit
-// tells positives from negatives.
+// tells positives from negatives. Its rooms: the held-out furniture among walls, boxes and
+// background furniture.
 #include "core/training/calibration.h"
 
 #include <random>
@@ -7,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include "core/common/error.h"
+#include "tests/common/synthetic_furniture.h"
 
 namespace ism {
 namespace {
@@ -45,6 +47,41 @@ TEST(FitCalibration, UnverifiedSamplesLeaveTheFitOutOfIt) {
 
 TEST(FitCalibration, NeedsBothKinds) {
   EXPECT_THROW(fitCalibration({{0, 1.0f, 3, true, 0.9f}}), Error);
+}
+
+// Whether the room shows the test's bed, a clutter object of its footprint, 1.9 m x 1.4 m: no
+// wall or box of a room has it (boxes are at most 1.2 m x 0.6 m).
+bool holdsBed(const CalibrationRoom& room) {
+  for (size_t i = 0; i < room.scene.objects.size(); ++i) {
+    const GroundTruthObject& o = room.scene.objects[i];
+    if (o.category.empty() && std::abs(o.size.x() - 1.9f) < 0.01f && std::abs(o.size.y() - 1.4f) < 0.01f &&
+        o.points > 0) {
+      return true;
+    }
+  }
+  return false;
+}
+
+TEST(CalibrationRoom, BackgroundFurnitureStandsAmongTheClutter) {
+  const Mesh chair = testing::boxMesh({-0.25f, -0.25f, 0}, {0.25f, 0.25f, 0.9f});
+  const Mesh bed = testing::boxMesh({-0.95f, -0.7f, 0}, {0.95f, 0.7f, 0.5f});
+  const PlacedObject furniture{"chair", 0, &chair}, background{"background", 0, &bed};
+  CalibrationParams params;
+  NoiseParams noise;
+  int with_bed = 0;
+  for (uint32_t seed = 1; seed <= 12; ++seed) {
+    std::mt19937 rng(seed);
+    const CalibrationRoom room = composeCalibrationRoom({&furniture}, {&background}, params, noise, rng);
+    ASSERT_GE(room.categories.size(), 1u);
+    EXPECT_EQ(room.categories[0], "chair");
+    with_bed += holdsBed(room) ? 1 : 0;
+  }
+  EXPECT_GE(with_bed, 4) << "up to 2 background objects per room, seen in at least a third of the rooms";
+  params.background_objects = 0;
+  for (uint32_t seed = 1; seed <= 12; ++seed) {
+    std::mt19937 rng(seed);
+    EXPECT_FALSE(holdsBed(composeCalibrationRoom({&furniture}, {&background}, params, noise, rng))) << seed;
+  }
 }
 
 }  // namespace
