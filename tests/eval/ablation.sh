@@ -41,7 +41,8 @@ steps=(
   "verified|$near|--preset default --centre-suppression|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
   "surface|=verified|--preset default|+ one object across categories only where one explains the other's verified surface"
   "far-views||--preset default|+ training views from 3.5 m rather than as near as the object fits in view"
-  "background||--preset default|+ codewords weighed against 21 background meshes (the default; manifest rows of category background)"
+  "background|--calibration-background 0|--preset default|+ codewords weighed against 21 background meshes (manifest rows of category background)"
+  "background-rooms||--preset default|+ up to 2 of the background meshes in each calibration room (the default)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
@@ -63,7 +64,7 @@ for step in "${steps[@]}"; do
   else
     start=$(date +%s.%N)
     # shellcheck disable=SC2086
-    "$build/core/ism-train" --manifest "$([[ $name == background || $name == kinect-window ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
+    "$build/core/ism-train" --manifest "$([[ $name == background* || $name == kinect-window ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
       > "$work/$name.train.log"
     seconds=$(echo "$(date +%s.%N) - $start" | bc)
     echo "$seconds" > "$work/$name.seconds"
