@@ -85,15 +85,20 @@ CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& f
     }
     return false;
   };
+  // One of `from`, drawn at random, standing apart from the others at a random heading, as its
+  // category's object or as clutter (""); false where no free place was found.
+  const auto standOne = [&](const std::vector<const PlacedObject*>& from, bool clutter) {
+    const PlacedObject& o = *from[static_cast<size_t>(unit(rng) * static_cast<float>(from.size())) % from.size()];
+    const Eigen::Vector3f size = o.mesh->bounds().sizes();
+    Eigen::Vector2f at;
+    if (!place(0.5f * std::hypot(size.x(), size.y()), at)) return false;
+    objects.push_back({clutter ? std::string() : o.category, *o.mesh, at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
+    return true;
+  };
   CalibrationRoom room;
   const int count = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_objects));
   for (int i = 0; i < std::min<int>(count, static_cast<int>(furniture.size())); ++i) {
-    const PlacedObject& o = *furniture[static_cast<size_t>(unit(rng) * static_cast<float>(furniture.size())) % furniture.size()];
-    const Eigen::Vector3f size = o.mesh->bounds().sizes();
-    Eigen::Vector2f at;
-    if (!place(0.5f * std::hypot(size.x(), size.y()), at)) continue;
-    objects.push_back({o.category, *o.mesh, at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
-    room.categories.push_back(o.category);
+    if (standOne(furniture, false)) room.categories.push_back(objects.back().category);
   }
   // Walls at the room's far side and one side, shelves and cabinets against or near them.
   objects.push_back({"", boxMesh({-3.5f, 2.2f, 0}, {3.5f, 2.3f, 2.5f}), 0, 0, 0});
@@ -107,13 +112,7 @@ CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& f
                        at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
   }
   const int others = background.empty() ? 0 : static_cast<int>(unit(rng) * static_cast<float>(params.background_objects + 1));
-  for (int i = 0; i < others; ++i) {
-    const PlacedObject& o = *background[static_cast<size_t>(unit(rng) * static_cast<float>(background.size())) % background.size()];
-    const Eigen::Vector3f size = o.mesh->bounds().sizes();
-    Eigen::Vector2f at;
-    if (!place(0.5f * std::hypot(size.x(), size.y()), at)) continue;
-    objects.push_back({"", *o.mesh, at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
-  }
+  for (int i = 0; i < others; ++i) standOne(background, true);
   SyntheticSceneParams scene;
   const float azimuth = uniform(-2.4f, -0.7f);  // from the open side, facing the far wall
   const float distance = uniform(params.distance_min, params.distance_max);
@@ -199,17 +198,20 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
   Strategy strategy{CodebookType::kGlobal, model.trained_knn, VoteWeighting::kLocalization};
   std::vector<CalibrationSample> samples;
   std::mutex mutex;
+  std::vector<const PlacedObject*> background;  // every fold's rooms stand them among the clutter
+  for (const auto& o : objects) {
+    if (o.category == kBackgroundCategory) background.push_back(&o);
+  }
   for (int fold = 0; fold < cp.folds; ++fold) {
     // A category's fold holds models m with m % folds == fold, unless that would leave it none.
     std::vector<std::vector<bool>> held_out(model.categories.size());
-    std::vector<const PlacedObject*> candidates, background;
+    std::vector<const PlacedObject*> candidates;
     for (size_t c = 0; c < model.categories.size(); ++c) {
       held_out[c].assign(static_cast<size_t>(models[c]), false);
       for (int m = fold; m < models[c]; m += cp.folds) held_out[c][static_cast<size_t>(m)] = true;
       if (std::count(held_out[c].begin(), held_out[c].end(), false) == 0) std::fill(held_out[c].begin(), held_out[c].end(), false);
     }
     for (const auto& o : objects) {
-      if (o.category == kBackgroundCategory) background.push_back(&o);
       const CategoryModel* c = model.find(o.category);
       if (c == nullptr) continue;
       const auto index = static_cast<size_t>(c - model.categories.data());

@@ -52,8 +52,7 @@ TEST(FitCalibration, NeedsBothKinds) {
 // Whether the room shows the test's bed, a clutter object of its footprint, 1.9 m x 1.4 m: no
 // wall or box of a room has it (boxes are at most 1.2 m x 0.6 m).
 bool holdsBed(const CalibrationRoom& room) {
-  for (size_t i = 0; i < room.scene.objects.size(); ++i) {
-    const GroundTruthObject& o = room.scene.objects[i];
+  for (const GroundTruthObject& o : room.scene.objects) {
     if (o.category.empty() && std::abs(o.size.x() - 1.9f) < 0.01f && std::abs(o.size.y() - 1.4f) < 0.01f &&
         o.points > 0) {
       return true;
