@@ -126,7 +126,20 @@ ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags,
                              const std::string& log_file)
     : credentials_(credentials ? std::move(credentials) : grpc::InsecureChannelCredentials()) {
   const std::string models = tinyModelDirectory();
-  port_ = port > 0 ? port : freePort();
+  // A port picked here is free when picked, but tests run in parallel and another process may
+  // bind it before this server does; the server then exits at start-up, and a fresh pick
+  // starts it again. A port the test chose (a restart on its predecessor's) is taken as given.
+  const bool picked = port <= 0;
+  const int attempts = picked ? 4 : 1;
+  for (int attempt = 1;; ++attempt) {
+    port_ = picked ? freePort() : port;
+    if (start(extra_flags, models, log_file)) return;
+    if (attempt == attempts) throw std::runtime_error("ism-server exited during start-up");
+  }
+}
+
+bool ServerProcess::start(const std::vector<std::string>& extra_flags, const std::string& models,
+                          const std::string& log_file) {
   // The fixture's defaults, for the flags a test does not give itself (each may be given once).
   const auto given = [&](const std::string& flag) {
     return std::find(extra_flags.begin(), extra_flags.end(), flag) != extra_flags.end();
@@ -165,12 +178,12 @@ ServerProcess::ServerProcess(const std::vector<std::string>& extra_flags,
     grpc::health::v1::HealthCheckResponse response;
     if (health->Check(&context, {}, &response).ok() &&
         response.status() == grpc::health::v1::HealthCheckResponse::SERVING) {
-      return;
+      return true;
     }
     int status = 0;
     if (waitpid(pid_, &status, WNOHANG) == pid_) {
       pid_ = -1;
-      throw std::runtime_error("ism-server exited during start-up");
+      return false;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }

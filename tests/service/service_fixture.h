@@ -51,6 +51,9 @@ class ServerProcess {
   std::string metrics() const;
 
  private:
+  // Spawns the server on port_ and waits for SERVING; false when it exited during start-up.
+  bool start(const std::vector<std::string>& extra_flags, const std::string& models, const std::string& log_file);
+
   pid_t pid_ = -1;
   int port_ = 0;
   int metrics_port_ = 0;
