@@ -96,6 +96,9 @@ int main(int argc, char** argv) {
   app.add_option("--calibration-background", params.calibration.background_objects,
                  "background meshes of the manifest placed in each calibration room (0 to this many)")
       ->check(CLI::NonNegativeNumber);
+  app.add_option("--calibration-objects", params.calibration.max_objects,
+                 "held-out furniture placed in each calibration room (1 to this many)")
+      ->check(CLI::PositiveNumber);
   std::optional<uint32_t> training_seed;
   app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "
