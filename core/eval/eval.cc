@@ -60,6 +60,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.min_confidence = 0;     // down to the lowest confidence recognition looks at
   options.verify = recognition.verify;
   options.suppression.shared_surface = recognition.shared_surface;
+  options.verification.maps_in_3d = recognition.maps_in_3d;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

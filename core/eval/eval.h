@@ -38,6 +38,7 @@ struct EvalRecognition {
   float min_confidence = 0.5f;
   bool verify = true;  // default preset, where the scene is at hand
   bool shared_surface = true;  // SuppressionParams::shared_surface
+  bool maps_in_3d = true;      // VerificationParams::maps_in_3d
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

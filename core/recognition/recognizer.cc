@@ -194,7 +194,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
   ScopedStage stage(&result.timings, "verify");
   const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
   std::vector<Hypothesis> verified;
-  const VerificationScene view = makeVerificationScene(scene, features.gravity);
+  const VerificationScene view = makeVerificationScene(scene, features.gravity, options.verification);
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const std::string& name = model.categories[static_cast<size_t>(plan.categories[s])].name;
     std::vector<Hypothesis> own;
@@ -202,7 +202,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
       if (h.category == name) own.push_back(std::move(h));
     }
     if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity, options.suppression);
-    verifyHypotheses(view, model, own, {}, options.should_stop);
+    verifyHypotheses(view, model, own, options.verification, options.should_stop);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);

@@ -18,6 +18,7 @@
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/suppression.h"
+#include "core/recognition/verification.h"
 #include "core/recognition/voting.h"
 
 namespace ism {
@@ -52,6 +53,7 @@ struct RecognitionOptions {
   // shapes (verification.h), where the model keeps them; the fit enters the confidence and the
   // box becomes the best fitting shape's.
   bool verify = true;
+  VerificationParams verification;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)

@@ -106,6 +106,56 @@ uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
          static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1fffff);
 }
 
+constexpr float kNearCell = 0.03f;
+
+// Whether the points surround the sensor rather than lie in one view from it: more than 5 % of
+// them farther than 65 degrees from their mean direction (viewpoint.h's test for maps).
+bool surroundsSensor(const std::vector<Eigen::Vector3f>& points) {
+  Eigen::Vector3f mean = Eigen::Vector3f::Zero();
+  for (const auto& p : points) {
+    if (p.norm() > 1e-6f) mean += p.normalized();
+  }
+  if (!(mean.norm() > 1e-6f)) return !points.empty();
+  mean.normalize();
+  const float cos_limit = std::cos(65.0f * kPi / 180.0f);
+  size_t outside = 0;
+  for (const auto& p : points) {
+    if (p.norm() > 1e-6f && p.normalized().dot(mean) < cos_limit) ++outside;
+  }
+  return static_cast<double>(outside) > 0.05 * static_cast<double>(points.size());
+}
+
+// A map's pose in 3D: each of the shape's first `points` points above the floor agrees when a
+// measured point lies within about a cell of it, and is seen either way. No sensor says which
+// parts should have been seen, so an unscanned underside counts against every pose alike.
+Agreement agreementInMap(const VerificationScene& scene, float floor_z, const std::unordered_set<uint64_t>* claimed,
+                         const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
+                         std::unordered_set<uint64_t>* explained = nullptr) {
+  const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  Eigen::Matrix3f turn;
+  turn << c, -s, 0, s, c, 0, 0, 0, 1;
+  const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), floor_z);
+  const int n = std::min<int>(points, static_cast<int>(shape.size()));
+  Agreement a;
+  for (int i = 0; i < n; ++i) {
+    const Eigen::Vector3f& local = shape[static_cast<size_t>(i)];
+    if (local.z() < 0.05f) continue;  // on the floor, which is measured anywhere
+    const Eigen::Vector3f p = turn * local + offset;
+    ++a.tested;
+    ++a.seen;
+    if (!scene.near.contains(p)) continue;
+    const uint64_t surface = cellOf(p, 0.05f);
+    if (claimed != nullptr && claimed->count(surface) > 0) {
+      --a.seen;
+      ++a.claimed;
+      continue;
+    }
+    ++a.consistent;
+    if (explained != nullptr) explained->insert(surface);
+  }
+  return a;
+}
+
 struct ShapeView {
   const LocalView& view;
   float floor_z = 0;
@@ -180,6 +230,44 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
 
 }  // namespace
 
+NearGrid::NearGrid(const std::vector<Eigen::Vector3f>& points, float cell) {
+  if (points.empty()) return;
+  Eigen::Vector3f max = points.front();
+  min_ = points.front();
+  for (const auto& p : points) min_ = min_.cwiseMin(p), max = max.cwiseMax(p);
+  min_ -= Eigen::Vector3f::Constant(cell);  // room for the cubes around the outermost points
+  max += Eigen::Vector3f::Constant(cell);
+  const Eigen::Vector3f extent = max - min_;
+  cell_ = std::max(cell, std::cbrt(extent.prod() / static_cast<float>(kMaxCells)));
+  dims_ = (extent / cell_).array().floor().cast<int>() + 1;
+  bits_.assign((static_cast<size_t>(dims_.x()) * static_cast<size_t>(dims_.y()) * static_cast<size_t>(dims_.z()) + 63) / 64, 0);
+  for (const auto& p : points) {
+    const Eigen::Vector3i c = ((p - min_) / cell_).array().floor().cast<int>();
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const Eigen::Vector3i n = c + Eigen::Vector3i(dx, dy, dz);
+          if ((n.array() < 0).any() || (n.array() >= dims_.array()).any()) continue;
+          const size_t i = (static_cast<size_t>(n.z()) * static_cast<size_t>(dims_.y()) + static_cast<size_t>(n.y())) *
+                               static_cast<size_t>(dims_.x()) + static_cast<size_t>(n.x());
+          bits_[i / 64] |= uint64_t{1} << (i % 64);
+        }
+      }
+    }
+  }
+}
+
+bool NearGrid::contains(const Eigen::Vector3f& p) const {
+  if (bits_.empty()) return false;
+  const Eigen::Vector3f f = (p - min_) / cell_;
+  if ((f.array() < 0).any()) return false;
+  const Eigen::Vector3i c = f.array().floor().cast<int>();
+  if ((c.array() >= dims_.array()).any()) return false;
+  const size_t i = (static_cast<size_t>(c.z()) * static_cast<size_t>(dims_.y()) + static_cast<size_t>(c.y())) *
+                       static_cast<size_t>(dims_.x()) + static_cast<size_t>(c.x());
+  return (bits_[i / 64] >> (i % 64)) & 1u;
+}
+
 VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
                                         const VerificationParams& params) {
   VerificationScene out;
@@ -193,6 +281,10 @@ VerificationScene makeVerificationScene(const Scene& scene, const std::optional<
   out.points.reserve(n / stride + 1);
   for (size_t i = 0; i < n; i += stride) {
     out.points.push_back(out.to_gravity * ((*scene.cloud)[i].getVector3fMap() - out.origin));
+  }
+  if (params.maps_in_3d && scene.image_width == 0 && surroundsSensor(out.points)) {
+    out.map = true;
+    out.near = NearGrid(out.points, kNearCell);
   }
   return out;
 }
@@ -218,7 +310,8 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   const float shift = std::max(params.min_shift, params.shift_fraction * side);
   const Eigen::Vector3f middle(center.x(), center.y(), floor_z + height / 2);
   const float radius = reach + static_cast<float>(params.coarse_steps) * shift + params.fine_shift + 0.1f;
-  const std::optional<LocalView> view = lookAt(scene, middle, radius);
+  // A map is checked in 3D wherever its viewpoint stands, also beside or inside the hypothesis.
+  const std::optional<LocalView> view = scene.map ? LocalView{} : lookAt(scene, middle, radius);
   if (!view) return std::nullopt;
 
   ShapeBuffer scratch(view->depth.size());
@@ -231,7 +324,8 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
         for (int dy = -params.coarse_steps; dy <= params.coarse_steps; ++dy) {
           const Pose pose{static_cast<int>(o), box.yaw + 2 * kPi * static_cast<float>(y) / static_cast<float>(params.coarse_yaws),
                           center.head<2>() + shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
-          const Agreement a = agreement(sv, category.objects[o].surface, params.coarse_points, pose, scratch);
+          const Agreement a = scene.map ? agreementInMap(scene, floor_z, claimed, category.objects[o].surface, params.coarse_points, pose)
+                                        : agreement(sv, category.objects[o].surface, params.coarse_points, pose, scratch);
           coarse.emplace_back(a.rank(), pose);
         }
       }
@@ -250,8 +344,9 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
         for (int dy = -1; dy <= 1; ++dy) {
           const Pose pose{start.object, start.yaw + params.fine_yaw * static_cast<float>(dyaw),
                           start.xy + params.fine_shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
-          const Agreement a = agreement(sv, category.objects[static_cast<size_t>(pose.object)].surface,
-                                        params.max_points, pose, scratch);
+          const auto& surface = category.objects[static_cast<size_t>(pose.object)].surface;
+          const Agreement a = scene.map ? agreementInMap(scene, floor_z, claimed, surface, params.max_points, pose)
+                                        : agreement(sv, surface, params.max_points, pose, scratch);
           if (a.rank() <= best_rank) continue;
           best_rank = a.rank();
           best.seen = a.seen;
@@ -268,8 +363,12 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
     }
   }
   if (explained != nullptr) {
-    agreement(sv, category.objects[static_cast<size_t>(best_pose.object)].surface, params.max_points, best_pose, scratch,
-              explained);
+    const auto& surface = category.objects[static_cast<size_t>(best_pose.object)].surface;
+    if (scene.map) {
+      agreementInMap(scene, floor_z, claimed, surface, params.max_points, best_pose, explained);
+    } else {
+      agreement(sv, surface, params.max_points, best_pose, scratch, explained);
+    }
   }
   return best;
 }

@@ -94,6 +94,13 @@ int main(int argc, char** argv) {
   real->add_flag("--centre-suppression", centre_suppression,
                  "default preset: across categories, a centre in the other's footprint makes one object whatever "
                  "surface each explains (suppression.h)");
+  std::string map_verification = "3d";
+  real->add_option("--map-verification", map_verification,
+                   "default preset: how maps (clouds around their viewpoint) are verified: 3d, each shape point "
+                   "against the measured points near it, or viewpoint, on a depth buffer from the made-up viewpoint "
+                   "(verification.h)")
+      ->check(CLI::IsMember({"3d", "viewpoint"}))
+      ->capture_default_str();
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -131,7 +138,8 @@ int main(int argc, char** argv) {
       json = ism::baselineToJson(result);
     } else {
       ism::RealEvalParams params;
-      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression};
+      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
+                            map_verification == "3d"};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

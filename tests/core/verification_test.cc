@@ -171,5 +171,67 @@ TEST(Verification, VerifiedHypothesesGetTheFittedShapesBox) {
   EXPECT_EQ(hypotheses[1].box.center, before.center);
 }
 
+// The room of chairBeforeWall() fused from four cameras around it into one cloud without image
+// grid, looked at from its middle at eye height as recognition looks at a map (viewpoint.h).
+Scene fusedRoom(const Room& room) {
+  std::vector<SceneObject> objects{{"chair", room.chair, kChairX, kChairY, kChairYaw},
+                                   {"", testing::boxMesh({-3, 2.0f, 0}, {3, 2.1f, 2.5f}), 0, 0, 0}};
+  Scene map;
+  map.sensor_origin = {0.0f, 0.0f, 1.5f};
+  for (const Eigen::Vector3f& eye : {Eigen::Vector3f(0.0f, -2.6f, 1.4f), Eigen::Vector3f(2.4f, 0.2f, 1.4f),
+                                     Eigen::Vector3f(-2.4f, 0.2f, 1.4f), Eigen::Vector3f(0.0f, 1.8f, 1.6f)}) {
+    SyntheticSceneParams params;
+    params.camera_eye = eye;
+    params.camera_target = {kChairX, kChairY, 0.4f};
+    params.floor_size = 8.0f;
+    const SyntheticScene view = composeScene(objects, params);
+    for (size_t i = 0; i < view.scene.cloud->size(); i += 4) map.cloud->push_back((*view.scene.cloud)[i]);
+  }
+  return map;
+}
+
+TEST(Verification, AMapIsCheckedInThreeDimensions) {
+  const Room room = chairBeforeWall();
+  const Scene map = fusedRoom(room);
+  const VerificationScene scene = makeVerificationScene(map, knownFloor());
+  EXPECT_TRUE(scene.map);
+  // A single view stays on its depth buffer, with or without its image grid.
+  EXPECT_FALSE(makeVerificationScene(room.rendered.scene, knownFloor()).map);
+  Scene unorganized = room.rendered.scene;
+  unorganized.image_width = unorganized.image_height = 0;
+  EXPECT_FALSE(makeVerificationScene(unorganized, knownFloor()).map);
+  VerificationParams viewpoint;
+  viewpoint.maps_in_3d = false;
+  EXPECT_FALSE(makeVerificationScene(map, knownFloor(), viewpoint).map);
+
+  const auto fit = verify(scene, room.chairs, chairAt(room, kChairX + 0.06f, kChairY - 0.05f, kChairYaw + 0.2f));
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_EQ(fit->object, 1) << "the chair's shape, not the table's";
+  EXPECT_GT(fit->fit(), 0.6f) << fit->consistent << " of " << fit->seen;
+  EXPECT_LT((fit->center.head<2>() - Eigen::Vector2f(kChairX, kChairY)).norm(), 0.06f);
+  // Against the wall, the shape's parts that stand out from it have no measured point near them;
+  // in the open, none has.
+  const auto wall = verify(scene, room.chairs, chairAt(room, -1.5f, 1.75f, 0.0f));
+  const auto open = verify(scene, room.chairs, chairAt(room, -1.5f, -1.0f, 0.0f));
+  ASSERT_TRUE(wall.has_value() && open.has_value());
+  EXPECT_LT(wall->fit(), fit->fit() - 0.2f) << wall->consistent << " of " << wall->seen;
+  EXPECT_LT(open->fit(), 0.1f) << open->consistent << " of " << open->seen;
+}
+
+TEST(Verification, AMapsHypothesisAtItsViewpointIsChecked) {
+  // The viewpoint a map is given stands in the middle of the room, here in the chair: a depth
+  // buffer from there cannot look at the chair, the 3D check can.
+  const Room room = chairBeforeWall();
+  Scene map = fusedRoom(room);
+  map.sensor_origin = {kChairX, kChairY, 0.5f};
+  const Hypothesis chair = chairAt(room, kChairX, kChairY, kChairYaw);
+  const auto fit = verify(makeVerificationScene(map, knownFloor()), room.chairs, chair);
+  ASSERT_TRUE(fit.has_value());
+  EXPECT_GT(fit->fit(), 0.6f);
+  VerificationParams viewpoint;
+  viewpoint.maps_in_3d = false;
+  EXPECT_FALSE(verify(makeVerificationScene(map, knownFloor(), viewpoint), room.chairs, chair, viewpoint).has_value());
+}
+
 }  // namespace
 }  // namespace ism

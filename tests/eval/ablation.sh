@@ -38,11 +38,12 @@ steps=(
   "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
   "coarse|$near --no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
   "clouds|$near --no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
-  "verified|$near|--preset default --centre-suppression|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
-  "surface|=verified|--preset default|+ one object across categories only where one explains the other's verified surface"
-  "far-views||--preset default|+ training views from 3.5 m rather than as near as the object fits in view"
-  "background|--calibration-background 0|--preset default|+ codewords weighed against 21 background meshes (manifest rows of category background)"
-  "background-rooms||--preset default|+ up to 2 of the background meshes in each calibration room (the default)"
+  "verified|$near|--preset default --centre-suppression --map-verification viewpoint|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
+  "surface|=verified|--preset default --map-verification viewpoint|+ one object across categories only where one explains the other's verified surface"
+  "far-views||--preset default --map-verification viewpoint|+ training views from 3.5 m rather than as near as the object fits in view"
+  "background|--calibration-background 0|--preset default --map-verification viewpoint|+ codewords weighed against 21 background meshes (manifest rows of category background)"
+  "background-rooms||--preset default --map-verification viewpoint|+ up to 2 of the background meshes in each calibration room"
+  "maps|=background-rooms|--preset default|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint (the default)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
