@@ -25,13 +25,14 @@ struct Spread {
   std::optional<Eigen::Vector3f> line_of_sight;
 };
 
-Spread spreadAboutOrigin(const Cloud& cloud, const ViewpointParams& params) {
+Spread spreadAbout(const Cloud& cloud, const Eigen::Vector3f& viewpoint, const ViewpointParams& params) {
   const auto& points = cloud.points;
   const size_t stride = sampleStride(points.size());
+  const Eigen::Vector3d origin = viewpoint.cast<double>();
   Eigen::Vector3d mean_direction = Eigen::Vector3d::Zero();
   size_t counted = 0;
   for (size_t i = 0; i < points.size(); i += stride) {
-    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
+    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>() - origin;
     if (p.norm() > 1e-6) mean_direction += p.normalized(), ++counted;
   }
   if (counted == 0) return {};
@@ -40,7 +41,7 @@ Spread spreadAboutOrigin(const Cloud& cloud, const ViewpointParams& params) {
   const double cos_limit = std::cos(params.max_view_angle_deg * M_PI / 180.0);
   size_t outside = 0;
   for (size_t i = 0; i < points.size(); i += stride) {
-    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>();
+    const Eigen::Vector3d p = points[i].getVector3fMap().cast<double>() - origin;
     if (p.norm() > 1e-6 && p.normalized().dot(mean_direction) < cos_limit) ++outside;
   }
   if (static_cast<double>(outside) > params.outside_fraction * static_cast<double>(counted)) return {true, std::nullopt};
@@ -60,8 +61,12 @@ Eigen::Quaternionf orientationWithUp(const Eigen::Vector3f& up) {
 }  // namespace
 
 std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params) {
-  if (!poseless(scene) || !spreadAboutOrigin(*scene.cloud, params).map) return std::nullopt;
+  if (!poseless(scene) || !spreadAbout(*scene.cloud, Eigen::Vector3f::Zero(), params).map) return std::nullopt;
   return mapView(scene, params);
+}
+
+bool surrounds(const Cloud& cloud, const Eigen::Vector3f& viewpoint, const ViewpointParams& params) {
+  return !cloud.empty() && spreadAbout(cloud, viewpoint, params).map;
 }
 
 bool facesItsPoints(const Scene& scene) {
@@ -80,7 +85,7 @@ Scene lookedAt(const Scene& scene, const ViewpointParams& params) {
   Scene seen = scene;
   if (scene.image_width > 0 && !facesItsPoints(scene)) seen.sensor_orientation = Eigen::Quaternionf::Identity();
   if (!poseless(scene)) return seen;
-  const Spread spread = spreadAboutOrigin(*scene.cloud, params);
+  const Spread spread = spreadAbout(*scene.cloud, Eigen::Vector3f::Zero(), params);
   if (spread.map) {
     const MapView view = mapView(scene, params);
     seen.sensor_origin = view.origin;

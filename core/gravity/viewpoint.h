@@ -35,6 +35,10 @@ struct MapView {
 // Nothing for every other scene, whose own sensor stands.
 std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& params = {});
 
+// Whether `cloud` surrounds `viewpoint`, a map's points do, rather than lying in one view from it:
+// more than params.outside_fraction of them beyond max_view_angle_deg of their mean direction.
+bool surrounds(const Cloud& cloud, const Eigen::Vector3f& viewpoint, const ViewpointParams& params = {});
+
 // Whether at least half of the points lie in front of the sensor (+z of its optical frame, turned
 // by its orientation). A depth image's points all do; some files' pose says otherwise (PCL's test
 // frames such as office1.pcd carry a VIEWPOINT turned 180 degrees about x while their points are

@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "core/common/upright_box.h"
+#include "core/gravity/viewpoint.h"
 
 namespace ism {
 namespace {
@@ -106,24 +107,10 @@ uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
          static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1fffff);
 }
 
+// A shape point agrees with a map where a measured point lies in its cube of this edge or a
+// neighbouring one (3-9 cm off): the front end's voxel (kDefaultLeafSize), the map's resolution
+// as recognition reads it.
 constexpr float kNearCell = 0.03f;
-
-// Whether the points surround the sensor rather than lie in one view from it: more than 5 % of
-// them farther than 65 degrees from their mean direction (viewpoint.h's test for maps).
-bool surroundsSensor(const std::vector<Eigen::Vector3f>& points) {
-  Eigen::Vector3f mean = Eigen::Vector3f::Zero();
-  for (const auto& p : points) {
-    if (p.norm() > 1e-6f) mean += p.normalized();
-  }
-  if (!(mean.norm() > 1e-6f)) return !points.empty();
-  mean.normalize();
-  const float cos_limit = std::cos(65.0f * kPi / 180.0f);
-  size_t outside = 0;
-  for (const auto& p : points) {
-    if (p.norm() > 1e-6f && p.normalized().dot(mean) < cos_limit) ++outside;
-  }
-  return static_cast<double>(outside) > 0.05 * static_cast<double>(points.size());
-}
 
 // A map's pose in 3D: each of the shape's first `points` points above the floor agrees when a
 // measured point lies within about a cell of it, and is seen either way. No sensor says which
@@ -282,7 +269,7 @@ VerificationScene makeVerificationScene(const Scene& scene, const std::optional<
   for (size_t i = 0; i < n; i += stride) {
     out.points.push_back(out.to_gravity * ((*scene.cloud)[i].getVector3fMap() - out.origin));
   }
-  if (params.maps_in_3d && scene.image_width == 0 && surroundsSensor(out.points)) {
+  if (params.maps_in_3d && scene.image_width == 0 && surrounds(*scene.cloud, scene.sensor_origin)) {
     out.map = true;
     out.near = NearGrid(out.points, kNearCell);
   }

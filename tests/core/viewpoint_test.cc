@@ -58,6 +58,17 @@ TEST(MapViewpoint, ASingleViewKeepsItsOrigin) {
   EXPECT_FALSE(mapViewpoint(turned).has_value());
 }
 
+TEST(Surrounds, AMapAroundAnyViewpointAViewFromItsOwn) {
+  EXPECT_TRUE(surrounds(*room().cloud, Eigen::Vector3f::Zero()));
+  EXPECT_TRUE(surrounds(*room().cloud, Eigen::Vector3f(0.5f, 0.0f, 1.5f)));  // a map's made-up viewpoint
+  EXPECT_FALSE(surrounds(*frame().cloud, Eigen::Vector3f::Zero()));
+  // The same view taken from far behind its sensor still lies in one cone.
+  EXPECT_FALSE(surrounds(*frame().cloud, Eigen::Vector3f(0.0f, 0.0f, -2.0f)));
+  // From inside the view's own points, they lie all around.
+  EXPECT_TRUE(surrounds(*frame().cloud, Eigen::Vector3f(0.0f, 0.0f, 3.0f)));
+  EXPECT_FALSE(surrounds(Cloud(), Eigen::Vector3f::Zero()));
+}
+
 TEST(MapViewpoint, AScenesOwnPoseOrImageGridStands) {
   Scene posed = room();
   posed.sensor_origin = Eigen::Vector3f(0.5f, 0, 1.2f);
