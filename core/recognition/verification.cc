@@ -112,15 +112,21 @@ uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
 // as recognition reads it.
 constexpr float kNearCell = 0.03f;
 
+// The rotation of a pose's shape about up.
+Eigen::Matrix3f headingOf(const Pose& pose) {
+  const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
+  Eigen::Matrix3f turn;
+  turn << c, -s, 0, s, c, 0, 0, 0, 1;
+  return turn;
+}
+
 // A map's pose in 3D: each of the shape's first `points` points above the floor agrees when a
 // measured point lies within about a cell of it, and is seen either way. No sensor says which
 // parts should have been seen, so an unscanned underside counts against every pose alike.
 Agreement agreementInMap(const VerificationScene& scene, float floor_z, const std::unordered_set<uint64_t>* claimed,
                          const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
-                         std::unordered_set<uint64_t>* explained = nullptr) {
-  const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
-  Eigen::Matrix3f turn;
-  turn << c, -s, 0, s, c, 0, 0, 0, 1;
+                         std::unordered_set<uint64_t>* explained) {
+  const Eigen::Matrix3f turn = headingOf(pose);
   const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), floor_z);
   const int n = std::min<int>(points, static_cast<int>(shape.size()));
   Agreement a;
@@ -166,12 +172,10 @@ struct ShapeBuffer {
 // of the agreeing points are added to it.
 Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
                     ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr) {
-  const float c = std::cos(pose.yaw), s = std::sin(pose.yaw);
   const int n = std::min<int>(points, static_cast<int>(shape.size()));
   buffer.touched.clear();
   // The pose and the view in one affine map: the shape's points go straight into the view's axes.
-  Eigen::Matrix3f turn;
-  turn << c, -s, 0, s, c, 0, 0, 0, 1;
+  const Eigen::Matrix3f turn = headingOf(pose);
   const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
   const Eigen::Matrix3f to_view = sv.view.axes * turn;
   const Eigen::Vector3f view_offset = sv.view.axes * offset;
@@ -213,6 +217,14 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     if (explained != nullptr) explained->insert(surface);
   }
   return a;
+}
+
+// A pose's agreement: in 3D for a map, else on the depth buffer of sv.view.
+Agreement poseAgreement(const VerificationScene& scene, const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape,
+                        int points, const Pose& pose, ShapeBuffer& buffer,
+                        std::unordered_set<uint64_t>* explained = nullptr) {
+  return scene.map ? agreementInMap(scene, sv.floor_z, sv.claimed, shape, points, pose, explained)
+                   : agreement(sv, shape, points, pose, buffer, explained);
 }
 
 }  // namespace
@@ -311,8 +323,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
         for (int dy = -params.coarse_steps; dy <= params.coarse_steps; ++dy) {
           const Pose pose{static_cast<int>(o), box.yaw + 2 * kPi * static_cast<float>(y) / static_cast<float>(params.coarse_yaws),
                           center.head<2>() + shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
-          const Agreement a = scene.map ? agreementInMap(scene, floor_z, claimed, category.objects[o].surface, params.coarse_points, pose)
-                                        : agreement(sv, category.objects[o].surface, params.coarse_points, pose, scratch);
+          const Agreement a = poseAgreement(scene, sv, category.objects[o].surface, params.coarse_points, pose, scratch);
           coarse.emplace_back(a.rank(), pose);
         }
       }
@@ -331,9 +342,8 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
         for (int dy = -1; dy <= 1; ++dy) {
           const Pose pose{start.object, start.yaw + params.fine_yaw * static_cast<float>(dyaw),
                           start.xy + params.fine_shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
-          const auto& surface = category.objects[static_cast<size_t>(pose.object)].surface;
-          const Agreement a = scene.map ? agreementInMap(scene, floor_z, claimed, surface, params.max_points, pose)
-                                        : agreement(sv, surface, params.max_points, pose, scratch);
+          const Agreement a = poseAgreement(scene, sv, category.objects[static_cast<size_t>(pose.object)].surface,
+                                            params.max_points, pose, scratch);
           if (a.rank() <= best_rank) continue;
           best_rank = a.rank();
           best.seen = a.seen;
@@ -350,12 +360,8 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
     }
   }
   if (explained != nullptr) {
-    const auto& surface = category.objects[static_cast<size_t>(best_pose.object)].surface;
-    if (scene.map) {
-      agreementInMap(scene, floor_z, claimed, surface, params.max_points, best_pose, explained);
-    } else {
-      agreement(sv, surface, params.max_points, best_pose, scratch, explained);
-    }
+    poseAgreement(scene, sv, category.objects[static_cast<size_t>(best_pose.object)].surface, params.max_points,
+                  best_pose, scratch, explained);
   }
   return best;
 }
