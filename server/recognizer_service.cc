@@ -77,10 +77,15 @@ grpc::ServerUnaryReactor* RecognizerService::unary(grpc::CallbackServerContext* 
     grpc::Status status;
     std::string request_id;
     try {
-      // First: a call whose caller gave up (also one whose deadline passed before its request was
-      // read, which leaves the request empty) is answered as such, never as bad input.
+      // First: a call whose caller gave up is answered as such, never as bad input. That includes
+      // a call handed over with no message at all (not an empty one): it ended before its request
+      // came, as when its deadline passed before the server read it, and the cancellation can
+      // reach this context a moment after the missing request does.
       const ShouldStop stopped = context_.stopper(context);
       throwIfStopped(stopped, rpc);
+      if (!request_bytes->Valid()) {
+        throw Error(ErrorCode::kCancelled, std::string(rpc) + ": the caller closed the call before sending its request");
+      }
       Request request;
       decodeMessage(*request_bytes, std::string(rpc) + ": the request", &request);
       if constexpr (std::is_same_v<Request, v1::RecognizeRequest>) request_id = request.request_id();

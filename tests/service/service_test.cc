@@ -515,6 +515,28 @@ grpc::Status callThatNeverSendsItsRequest(const std::shared_ptr<grpc::Channel>& 
   return status;
 }
 
+// A unary call whose client closes its side without sending a request, then waits for the answer.
+grpc::Status callClosedWithoutItsRequest(const std::shared_ptr<grpc::Channel>& channel, const std::string& method) {
+  grpc::GenericStub stub(channel);
+  grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
+  grpc::CompletionQueue queue;
+  auto call = stub.PrepareCall(&context, method, &queue);
+  void* tag = nullptr;
+  bool ok = false;
+  call->StartCall(&tag);
+  queue.Next(&tag, &ok);
+  call->WritesDone(&tag);
+  queue.Next(&tag, &ok);
+  grpc::Status status;
+  call->Finish(&status, &tag);
+  queue.Next(&tag, &ok);
+  queue.Shutdown();
+  while (queue.Next(&tag, &ok)) {
+  }
+  return status;
+}
+
 // Waits until /metrics counts `count` Recognize calls in all; returns the count per code.
 std::map<std::string, int> recognizeCodesOnceCounted(const ServerProcess& server, int count) {
   const std::regex line("ism_requests_total\\{code=\"([A-Z_]+)\",rpc=\"Recognize\"\\} ([0-9]+)");
@@ -555,6 +577,23 @@ TEST(ServiceDeadline, ADeadlineThatPassedBeforeTheRequestWasReadIsCountedAsSuch)
   v1::RecognizeResponse response;
   const grpc::Status served = FurnitureRecognizer::NewStub(server.channel())->Recognize(&context, request, &response);
   EXPECT_TRUE(served.ok()) << served.error_message();
+}
+
+// What the server is handed when a call's deadline passes or its caller cancels before the request
+// was read, whether or not the cancellation has reached the server yet: no message at all. It is
+// answered as a call given up, never as bad input (an empty request is, below).
+TEST(ServiceDeadline, ACallClosedBeforeItsRequestIsAnsweredAsGivenUp) {
+  ServerProcess server;
+  const grpc::Status status = callClosedWithoutItsRequest(server.channel(), "/ism.v1.FurnitureRecognizer/Recognize");
+  EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED) << status.error_message();
+  EXPECT_NE(status.error_message().find("closed the call before sending its request"), std::string::npos)
+      << status.error_message();
+  EXPECT_EQ(recognizeCodesOnceCounted(server, 1), (std::map<std::string, int>{{"CANCELLED", 1}}));
+  grpc::ClientContext context;
+  v1::RecognizeResponse response;
+  const grpc::Status empty = FurnitureRecognizer::NewStub(server.channel())->Recognize(&context, {}, &response);
+  EXPECT_EQ(empty.error_code(), grpc::StatusCode::INVALID_ARGUMENT);
+  EXPECT_NE(empty.error_message().find("no scene given"), std::string::npos) << empty.error_message();
 }
 
 TEST_F(ServiceTest, MetricsCountRequestsAndStages) {
