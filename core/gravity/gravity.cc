@@ -6,6 +6,7 @@
 #include <limits>
 #include <random>
 
+#include "core/common/cpu_features.h"
 #include "core/common/error.h"
 #include "core/common/upright_box.h"
 
@@ -46,18 +47,22 @@ struct Support {
 // A plane's support, counted block by block. Counting stops, the counts then incomplete, once the
 // plane can no longer have more than `to_beat` points within `inlier` or has more than `max_below`
 // under it: such a plane loses either way, so the search picks the same plane as a full count.
-// The distance is normal . p - offset in Plane::distance's order of operations.
-Support countSupport(const Coordinates& c, const Plane& plane, float inlier, float below_margin, size_t to_beat,
-                     size_t max_below) {
+// The distance is normal . p - offset in Plane::distance's order of operations, and no variant
+// fuses a multiply with an add, so every CPU counts alike.
+inline __attribute__((always_inline)) Support countSupportBody(const Coordinates& c, const Plane& plane, float inlier,
+                                                               float below_margin, size_t to_beat, size_t max_below) {
   constexpr size_t kBlock = 512;
   const float nx = plane.normal.x(), ny = plane.normal.y(), nz = plane.normal.z(), offset = plane.offset;
   const size_t n = c.size();
+  const float* x = c.x.data();
+  const float* y = c.y.data();
+  const float* z = c.z.data();
   Support support;
   for (size_t start = 0; start < n; start += kBlock) {
     const size_t end = std::min(n, start + kBlock);
     unsigned within = 0, below = 0;
     for (size_t i = start; i < end; ++i) {
-      const float d = nx * c.x[i] + ny * c.y[i] + nz * c.z[i] - offset;
+      const float d = nx * x[i] + ny * y[i] + nz * z[i] - offset;
       within += std::abs(d) <= inlier ? 1u : 0u;
       below += d < -below_margin ? 1u : 0u;
     }
@@ -66,6 +71,26 @@ Support countSupport(const Coordinates& c, const Plane& plane, float inlier, flo
     if (support.within + (n - end) <= to_beat || support.below > max_below) break;
   }
   return support;
+}
+
+Support countSupportBaseline(const Coordinates& c, const Plane& plane, float inlier, float below_margin, size_t to_beat,
+                             size_t max_below) {
+  return countSupportBody(c, plane, inlier, below_margin, to_beat, max_below);
+}
+
+#if ISM_X86_KERNELS
+__attribute__((target("avx2"))) Support countSupportAvx2(const Coordinates& c, const Plane& plane, float inlier,
+                                                         float below_margin, size_t to_beat, size_t max_below) {
+  return countSupportBody(c, plane, inlier, below_margin, to_beat, max_below);
+}
+#endif
+
+Support countSupport(const Coordinates& c, const Plane& plane, float inlier, float below_margin, size_t to_beat,
+                     size_t max_below) {
+#if ISM_X86_KERNELS
+  if (cpuHasAvx2()) return countSupportAvx2(c, plane, inlier, below_margin, to_beat, max_below);
+#endif
+  return countSupportBaseline(c, plane, inlier, below_margin, to_beat, max_below);
 }
 
 // Up to `count` points spread over the cloud (every n-th), so that scoring a plane costs the
