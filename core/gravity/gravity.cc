@@ -47,8 +47,8 @@ struct Support {
 // A plane's support, counted block by block. Counting stops, the counts then incomplete, once the
 // plane can no longer have more than `to_beat` points within `inlier` or has more than `max_below`
 // under it: such a plane loses either way, so the search picks the same plane as a full count.
-// The distance is normal . p - offset in Plane::distance's order of operations, and no variant
-// fuses a multiply with an add, so every CPU counts alike.
+// The distance is Plane::distance's, in the same order of operations (Eigen sums a 3-vector's dot
+// product as x + (y + z)), and no variant fuses a multiply with an add, so every CPU counts alike.
 inline __attribute__((always_inline)) Support countSupportBody(const Coordinates& c, const Plane& plane, float inlier,
                                                                float below_margin, size_t to_beat, size_t max_below) {
   constexpr size_t kBlock = 512;
@@ -62,7 +62,7 @@ inline __attribute__((always_inline)) Support countSupportBody(const Coordinates
     const size_t end = std::min(n, start + kBlock);
     unsigned within = 0, below = 0;
     for (size_t i = start; i < end; ++i) {
-      const float d = nx * x[i] + ny * y[i] + nz * z[i] - offset;
+      const float d = nx * x[i] + (ny * y[i] + nz * z[i]) - offset;  // as Eigen sums a Vector3f's dot
       within += std::abs(d) <= inlier ? 1u : 0u;
       below += d < -below_margin ? 1u : 0u;
     }
