@@ -493,10 +493,11 @@ TEST_F(ServiceTest, ModelAdministrationErrors) {
   }
 }
 
-// A unary call whose client sends its headers and then nothing, until its deadline has passed:
-// the server's deadline passes before it has read the request.
-grpc::Status callThatNeverSendsItsRequest(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
-                                          std::chrono::milliseconds deadline) {
+// A unary call whose client sends its headers and no request, then waits for the answer. With
+// `close` it closes its side at once; without, it sends nothing until `deadline` has passed, so the
+// server's deadline passes before it has read the request.
+grpc::Status callWithoutItsRequest(const std::shared_ptr<grpc::Channel>& channel, const std::string& method,
+                                   std::chrono::milliseconds deadline, bool close) {
   grpc::GenericStub stub(channel);
   grpc::ClientContext context;
   context.set_deadline(std::chrono::system_clock::now() + deadline);
@@ -506,28 +507,10 @@ grpc::Status callThatNeverSendsItsRequest(const std::shared_ptr<grpc::Channel>& 
   bool ok = false;
   call->StartCall(&tag);
   queue.Next(&tag, &ok);
-  grpc::Status status;
-  call->Finish(&status, &tag);
-  queue.Next(&tag, &ok);
-  queue.Shutdown();
-  while (queue.Next(&tag, &ok)) {
+  if (close) {
+    call->WritesDone(&tag);
+    queue.Next(&tag, &ok);
   }
-  return status;
-}
-
-// A unary call whose client closes its side without sending a request, then waits for the answer.
-grpc::Status callClosedWithoutItsRequest(const std::shared_ptr<grpc::Channel>& channel, const std::string& method) {
-  grpc::GenericStub stub(channel);
-  grpc::ClientContext context;
-  context.set_deadline(std::chrono::system_clock::now() + std::chrono::seconds(60));
-  grpc::CompletionQueue queue;
-  auto call = stub.PrepareCall(&context, method, &queue);
-  void* tag = nullptr;
-  bool ok = false;
-  call->StartCall(&tag);
-  queue.Next(&tag, &ok);
-  call->WritesDone(&tag);
-  queue.Next(&tag, &ok);
   grpc::Status status;
   call->Finish(&status, &tag);
   queue.Next(&tag, &ok);
@@ -560,8 +543,8 @@ TEST(ServiceDeadline, ADeadlineThatPassedBeforeTheRequestWasReadIsCountedAsSuch)
   // The server must have taken the call's headers before the deadline, or gRPC drops the call
   // unseen: 3 s leaves room for a server under ThreadSanitizer on a busy machine (at 0.5 s one
   // never saw the call).
-  const grpc::Status status =
-      callThatNeverSendsItsRequest(server.channel(), "/ism.v1.FurnitureRecognizer/Recognize", std::chrono::seconds(3));
+  const grpc::Status status = callWithoutItsRequest(server.channel(), "/ism.v1.FurnitureRecognizer/Recognize",
+                                                    std::chrono::seconds(3), false);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << status.error_message();
   // The server never saw a request: the caller gave up, which says nothing about malformed input.
   const auto codes = recognizeCodesOnceCounted(server, 1);
@@ -584,7 +567,8 @@ TEST(ServiceDeadline, ADeadlineThatPassedBeforeTheRequestWasReadIsCountedAsSuch)
 // answered as a call given up, never as bad input (an empty request is, below).
 TEST(ServiceDeadline, ACallClosedBeforeItsRequestIsAnsweredAsGivenUp) {
   ServerProcess server;
-  const grpc::Status status = callClosedWithoutItsRequest(server.channel(), "/ism.v1.FurnitureRecognizer/Recognize");
+  const grpc::Status status = callWithoutItsRequest(server.channel(), "/ism.v1.FurnitureRecognizer/Recognize",
+                                                    std::chrono::seconds(60), true);
   EXPECT_EQ(status.error_code(), grpc::StatusCode::CANCELLED) << status.error_message();
   EXPECT_NE(status.error_message().find("closed the call before sending its request"), std::string::npos)
       << status.error_message();
