@@ -107,6 +107,10 @@ TEST(AdmissionService, ABurstIsServedOrRefusedAndLeavesNothingHeld) {
       *request.mutable_scene() = scene;
       grpc::ClientContext context;
       context.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(5));
+      // Each call has a channel of its own, and gRPC 1.51's first connection attempt sometimes
+      // fails at once (UNAVAILABLE, as in faults_test.cc): the server surely runs, so each call
+      // waits for its connection, and what it gets back is the server's answer.
+      context.set_wait_for_ready(true);
       v1::RecognizeResponse response;
       return stub->Recognize(&context, request, &response);
     }));
@@ -122,6 +126,8 @@ TEST(AdmissionService, ABurstIsServedOrRefusedAndLeavesNothingHeld) {
   v1::RecognizeRequest request;
   *request.mutable_scene() = scene;
   grpc::ClientContext context;
+  context.set_deadline(std::chrono::system_clock::now() + std::chrono::minutes(2));
+  context.set_wait_for_ready(true);
   v1::RecognizeResponse response;
   EXPECT_TRUE(stub->Recognize(&context, request, &response).ok());
 }
