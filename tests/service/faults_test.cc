@@ -350,7 +350,10 @@ TEST(Faults, ModelReloadAndUnloadUnderLoadFailNoRequest) {
   std::vector<std::thread> clients;
   for (int c = 0; c < 4; ++c) {
     clients.emplace_back([&, c] {
-      auto stub = FurnitureRecognizer::NewStub(ownChannel(server.address()));
+      const auto channel = ownChannel(server.address());
+      // Connected first (see SigtermUnderLoadAnswersOrRefusesEveryCall): the server surely runs.
+      EXPECT_TRUE(channel->WaitForConnected(std::chrono::system_clock::now() + std::chrono::minutes(1)));
+      auto stub = FurnitureRecognizer::NewStub(channel);
       v1::RecognizeRequest mine = request;
       // Half name the model, half rely on "the only one, or the one called default": a
       // second model coming and going must not change which one answers.
