@@ -3,7 +3,6 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
-#include <limits>
 #include <random>
 
 #include "core/common/cpu_features.h"
@@ -23,7 +22,7 @@ float radians(float degrees) { return degrees * static_cast<float>(M_PI) / 180.0
 
 // The points RANSAC scores its planes on, as three arrays: a plane's support is then counted
 // several points at a time (the compiler vectorizes the loop). RANSAC spends most of gravity's time
-// there, and gravity was the front end's costliest stage on a Kinect frame.
+// there.
 struct Coordinates {
   std::vector<float> x, y, z;
   explicit Coordinates(const std::vector<Eigen::Vector3f>& points) {
@@ -41,14 +40,16 @@ struct Coordinates {
 
 struct Support {
   size_t within = 0;  // points within the inlier distance of the plane
-  size_t below = 0;   // points farther than the margin under it
+  size_t below = 0;   // points farther than the margin under it (counted for the floor only)
 };
 
 // A plane's support, counted block by block. Counting stops, the counts then incomplete, once the
-// plane can no longer have more than `to_beat` points within `inlier` or has more than `max_below`
-// under it: such a plane loses either way, so the search picks the same plane as a full count.
-// The distance is Plane::distance's, in the same order of operations (Eigen sums a 3-vector's dot
-// product as x + (y + z)), and no variant fuses a multiply with an add, so every CPU counts alike.
+// plane can no longer have more than `to_beat` points within `inlier` or (kBelow: the floor) has
+// more than `max_below` farther than `below_margin` under it: such a plane loses either way, so the
+// search picks the same plane as a full count. The distance is Plane::distance's, in the same
+// order of operations (Eigen sums a 3-vector's dot product as x + (y + z)), and no variant fuses a
+// multiply with an add, so every CPU counts alike.
+template <bool kBelow>
 inline __attribute__((always_inline)) Support countSupportBody(const Coordinates& c, const Plane& plane, float inlier,
                                                                float below_margin, size_t to_beat, size_t max_below) {
   constexpr size_t kBlock = 512;
@@ -62,9 +63,9 @@ inline __attribute__((always_inline)) Support countSupportBody(const Coordinates
     const size_t end = std::min(n, start + kBlock);
     unsigned within = 0, below = 0;
     for (size_t i = start; i < end; ++i) {
-      const float d = nx * x[i] + (ny * y[i] + nz * z[i]) - offset;  // as Eigen sums a Vector3f's dot
+      const float d = nx * x[i] + (ny * y[i] + nz * z[i]) - offset;
       within += std::abs(d) <= inlier ? 1u : 0u;
-      below += d < -below_margin ? 1u : 0u;
+      if constexpr (kBelow) below += d < -below_margin ? 1u : 0u;
     }
     support.within += within;
     support.below += below;
@@ -73,24 +74,27 @@ inline __attribute__((always_inline)) Support countSupportBody(const Coordinates
   return support;
 }
 
+template <bool kBelow>
 Support countSupportBaseline(const Coordinates& c, const Plane& plane, float inlier, float below_margin, size_t to_beat,
                              size_t max_below) {
-  return countSupportBody(c, plane, inlier, below_margin, to_beat, max_below);
+  return countSupportBody<kBelow>(c, plane, inlier, below_margin, to_beat, max_below);
 }
 
 #if ISM_X86_KERNELS
+template <bool kBelow>
 __attribute__((target("avx2"))) Support countSupportAvx2(const Coordinates& c, const Plane& plane, float inlier,
                                                          float below_margin, size_t to_beat, size_t max_below) {
-  return countSupportBody(c, plane, inlier, below_margin, to_beat, max_below);
+  return countSupportBody<kBelow>(c, plane, inlier, below_margin, to_beat, max_below);
 }
 #endif
 
+template <bool kBelow>
 Support countSupport(const Coordinates& c, const Plane& plane, float inlier, float below_margin, size_t to_beat,
                      size_t max_below) {
 #if ISM_X86_KERNELS
-  if (cpuHasAvx2()) return countSupportAvx2(c, plane, inlier, below_margin, to_beat, max_below);
+  if (cpuHasAvx2()) return countSupportAvx2<kBelow>(c, plane, inlier, below_margin, to_beat, max_below);
 #endif
-  return countSupportBaseline(c, plane, inlier, below_margin, to_beat, max_below);
+  return countSupportBaseline<kBelow>(c, plane, inlier, below_margin, to_beat, max_below);
 }
 
 // Up to `count` points spread over the cloud (every n-th), so that scoring a plane costs the
@@ -167,7 +171,7 @@ std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const
     }
     plane.offset = plane.normal.dot(a);
     const Support support =
-        countSupport(coordinates, plane, params.inlier_distance, params.below_margin, best_support, max_below);
+        countSupport<true>(coordinates, plane, params.inlier_distance, params.below_margin, best_support, max_below);
     if (support.within > best_support && support.below <= max_below) {
       best_support = support.within;
       best = plane;
@@ -231,9 +235,7 @@ std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vect
       Plane plane;
       plane.normal = up.cross(along).normalized();
       plane.offset = plane.normal.dot(a);
-      const size_t support = countSupport(coordinates, plane, params.inlier_distance,
-                                          std::numeric_limits<float>::infinity(), best_support, free.size())
-                                 .within;
+      const size_t support = countSupport<false>(coordinates, plane, params.inlier_distance, 0, best_support, 0).within;
       if (support > best_support) {
         best_support = support;
         best = plane;
