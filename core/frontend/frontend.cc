@@ -1,9 +1,14 @@
 #include "core/frontend/frontend.h"
 
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <iterator>
 #include <optional>
 #include <vector>
 
 #include "core/common/error.h"
+#include "core/frontend/keypoints.h"
 #include "core/frontend/range_image.h"
 #include "core/frontend/shot.h"
 #include "core/frontend/upright_geometry.h"
@@ -58,15 +63,33 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     }
     return kept;
   };
+  // Keypoints on the surface besides its contours (KeypointParams::surface_spacing): indices
+  // into `points`, off the floor and walls; each needs a normal before it is taken.
+  const auto surfaceSamples = [&] {
+    if (params.keypoints.surface_spacing <= 0) return std::vector<int>{};
+    std::vector<uint8_t> eligible(points->size(), 1);
+    for (size_t i = 0; i < planes.size(); ++i) eligible[i] = planes[i] == PlaneLabel::kNone;
+    // A cube needs a line of voxels across it (fewer are stray points), and a keypoint keeps a
+    // voxel and a half from the floor and walls: their noise and the Kinect's depth steps scatter
+    // points beyond the planes' tolerance (its steps are 5 cm apart at 4 m).
+    const float leaf = params.downsample.leaf_size, spacing = params.keypoints.surface_spacing;
+    return sampleSurfaceKeypoints(*points, eligible,
+                                  {spacing, std::max(1, static_cast<int>(std::lround(spacing / leaf))), 1.5f * leaf});
+  };
+  const auto withSamples = [](std::vector<int> keypoints, const std::vector<int>& samples) {
+    if (samples.empty()) return keypoints;
+    std::vector<int> merged;
+    std::set_union(keypoints.begin(), keypoints.end(), samples.begin(), samples.end(), std::back_inserter(merged));
+    return merged;
+  };
   std::vector<int> keypoints;
   const KeypointMethod method = resolveKeypointMethod(params.keypoints, scene);
   if (method == KeypointMethod::kBoundary) {
-    std::vector<int> point_of_surface;
+    std::vector<int> point_of_surface, index_in_surface;
     {
       ScopedStage stage(timings, "normals");
       NormalEstimator normals(*points, params.normals, scene.sensor_origin);
       normals.computeAll();
-      std::vector<int> index_in_surface;
       result.surface = normals.surface(&index_in_surface);
       if (!planes.empty()) {
         point_of_surface.resize(result.surface->size());
@@ -80,6 +103,11 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
       ScopedStage stage(timings, "keypoints");
       keypoints = offPlanes(detectKeypoints(scene, *result.surface, params.keypoints, params.downsample.leaf_size),
                             point_of_surface);
+      std::vector<int> samples;
+      for (int point : surfaceSamples()) {
+        if (index_in_surface[static_cast<size_t>(point)] >= 0) samples.push_back(index_in_surface[static_cast<size_t>(point)]);
+      }
+      keypoints = withSamples(std::move(keypoints), samples);
     }
     throwIfStopped(should_stop, "keypoints");
   } else {
@@ -96,6 +124,16 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
         }
       } else {
         keypoints = offPlanes(detectContourKeypoints(scene, *normals, params.keypoints, params.downsample.leaf_size), {});
+      }
+      std::vector<int> samples = surfaceSamples();
+      if (!samples.empty()) {
+        std::vector<uint8_t> wanted(points->size(), 0);
+        for (int point : samples) wanted[static_cast<size_t>(point)] = 1;
+        normals->compute(wanted);
+        samples.erase(std::remove_if(samples.begin(), samples.end(),
+                                     [&](int point) { return !normals->defined()[static_cast<size_t>(point)]; }),
+                      samples.end());
+        keypoints = withSamples(std::move(keypoints), samples);
       }
     }
     throwIfStopped(should_stop, "keypoints");

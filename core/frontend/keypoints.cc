@@ -2,10 +2,13 @@
 
 #include <pcl/features/boundary.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
 #include <string>
+#include <unordered_map>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "core/common/error.h"
@@ -132,6 +135,50 @@ std::vector<int> detectKeypoints(const Scene& scene, const Surface& surface, con
                                      leaf_size);
   }
   return thinKeypoints(surface, keypoints, params.min_spacing);
+}
+
+std::vector<int> sampleSurfaceKeypoints(const XyzCloud& points, const std::vector<uint8_t>& eligible,
+                                        const SurfaceSampling& sampling) {
+  requirePositive(sampling.spacing, "keypoints.surface_spacing");
+  if (eligible.size() != points.size()) {
+    throw Error(ErrorCode::kInternal, "sampleSurfaceKeypoints: " + std::to_string(eligible.size()) + " flags for " +
+                                          std::to_string(points.size()) + " points");
+  }
+  const float inverse_spacing = 1.0f / sampling.spacing;
+  struct Cube {
+    int nearest = -1;  // the eligible point nearest the centre
+    float squared_distance = 0;
+    int points = 0;  // eligible ones
+  };
+  std::unordered_map<Cell, Cube, CellHash> cubes;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (!eligible[i]) continue;
+    const Cell cell = cellOf(points[i], inverse_spacing);
+    const Eigen::Vector3f centre =
+        (Eigen::Vector3f(static_cast<float>(cell.x), static_cast<float>(cell.y), static_cast<float>(cell.z)) +
+         Eigen::Vector3f::Constant(0.5f)) * sampling.spacing;
+    const float d = (points[i].getVector3fMap() - centre).squaredNorm();
+    Cube& cube = cubes[cell];
+    ++cube.points;
+    if (cube.nearest < 0 || d < cube.squared_distance) cube.nearest = static_cast<int>(i), cube.squared_distance = d;
+  }
+  std::vector<int> sampled;
+  for (const auto& [cell, cube] : cubes) {
+    if (cube.points >= sampling.min_points) sampled.push_back(cube.nearest);
+  }
+  std::sort(sampled.begin(), sampled.end());
+  if (sampling.clearance > 0 && std::find(eligible.begin(), eligible.end(), 0) != eligible.end()) {
+    std::vector<uint8_t> others(eligible.size());
+    for (size_t i = 0; i < eligible.size(); ++i) others[i] = !eligible[i];
+    const NeighbourGrid grid(points, sampling.clearance);
+    sampled.erase(std::remove_if(sampled.begin(), sampled.end(),
+                                 [&](int i) {
+                                   return grid.nearest(points[static_cast<size_t>(i)].getVector3fMap(),
+                                                       sampling.clearance, &others) >= 0;
+                                 }),
+                  sampled.end());
+  }
+  return sampled;
 }
 
 std::vector<int> detectContourKeypoints(const Scene& scene, NormalEstimator& normals, const KeypointParams& params,

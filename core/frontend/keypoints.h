@@ -2,7 +2,9 @@
 // Keypoints: where the scene is described. Organized scenes (depth images, organized clouds) take
 // the points on occluding contours (occluding_contours.h), found before any normal; unorganized
 // clouds take boundary points (largest angular gap among the neighbours), which need every
-// normal first. Either set can be thinned to one keypoint per cube of min_spacing.
+// normal first. Either set can be thinned to one keypoint per cube of min_spacing. Keypoints
+// sampled on the surface (sampleSurfaceKeypoints) can join either.
+#include <cstdint>
 #include <vector>
 
 #include "core/common/types.h"
@@ -28,6 +30,18 @@ std::vector<int> nearestSurfacePoints(const Surface& surface, const Cloud& cloud
 // The first of `keypoints` (in order) in each cube of edge `spacing`; spacing 0 keeps them all.
 template <class PointT>
 std::vector<int> thinKeypoints(const pcl::PointCloud<PointT>& points, const std::vector<int>& keypoints, float spacing);
+
+// Keypoints on surfaces, not only on their contours: of the points with eligible[i] != 0, the one
+// nearest the centre of each cube of edge `spacing` that holds at least `min_points` of them,
+// unless a point that is not eligible lies within `clearance` of it (ascending indices into
+// `points`).
+struct SurfaceSampling {
+  float spacing = 0;
+  int min_points = 1;
+  float clearance = 0;
+};
+std::vector<int> sampleSurfaceKeypoints(const XyzCloud& points, const std::vector<uint8_t>& eligible,
+                                        const SurfaceSampling& sampling);
 
 // Occluding-contour keypoints before any normal: indices into normals.cloud() (ascending) of
 // what nearestSurfacePoints picks for the contour pixels at max_distance = leaf_size, thinned to

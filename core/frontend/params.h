@@ -73,6 +73,10 @@ struct KeypointParams {
   // default: contours are already sparse (3,376 keypoints on tum_desk), and thinning them when
   // recognising loses the support that chairs, thin as they are, need on real Kinect frames.
   float min_spacing = 0.0f;
+  // Besides the contours, keypoints on the surface itself: of the points off the floor and walls,
+  // the one nearest the centre of each cube of this edge (m), as PCL's ISM (Knopp et al. 2010) and
+  // Seib et al.'s PointCloudDonkey describe the points of a voxel grid. 0 = contours only (the seed).
+  float surface_spacing = 0.0f;
 };
 
 struct ShotParams {

@@ -326,6 +326,7 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
   contour.relative_jump = fe.contour_relative_jump();
   contour.max_gap = fe.contour_max_gap();
   m.front_end.keypoints.min_spacing = fe.keypoint_min_spacing();
+  m.front_end.keypoints.surface_spacing = fe.keypoint_surface_spacing();
   if (m.front_end.keypoints.method != KeypointMethod::kBoundary &&
       !(contour.window >= 1 && contour.max_gap >= contour.window && contour.min_jump > 0 &&
         contour.relative_jump >= 0 && std::isfinite(contour.relative_jump))) {
@@ -335,6 +336,10 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
   }
   if (!(m.front_end.keypoints.min_spacing >= 0 && std::isfinite(m.front_end.keypoints.min_spacing))) {
     r.fail("front-end keypoint_min_spacing " + std::to_string(m.front_end.keypoints.min_spacing) + " is not >= 0");
+  }
+  if (!(m.front_end.keypoints.surface_spacing >= 0 && std::isfinite(m.front_end.keypoints.surface_spacing))) {
+    r.fail("front-end keypoint_surface_spacing " + std::to_string(m.front_end.keypoints.surface_spacing) +
+           " is not >= 0");
   }
   if (!(fe.leaf_size() > 0) || !(fe.normal_radius() > 0) || !(fe.boundary_radius() > 0) || !(fe.shot_radius() > 0)) {
     r.fail("front-end parameters have a non-positive radius or leaf size");
@@ -447,6 +452,7 @@ std::string serializeModel(const Model& model) {
   fe->set_contour_relative_jump(model.front_end.keypoints.contour.relative_jump);
   fe->set_contour_max_gap(model.front_end.keypoints.contour.max_gap);
   fe->set_keypoint_min_spacing(model.front_end.keypoints.min_spacing);
+  fe->set_keypoint_surface_spacing(model.front_end.keypoints.surface_spacing);
   toProto(model.front_end.gravity, fe->mutable_gravity());
   data.mutable_voting()->set_frame(model.voting.frame == VoteFrame::kLrf ? v1::VOTE_FRAME_LRF : v1::VOTE_FRAME_UPRIGHT);
   data.mutable_voting()->set_height_tolerance(model.voting.height_tolerance);

@@ -60,6 +60,10 @@ int main(int argc, char** argv) {
   app.add_option("--shot-radius", params.front_end.shot.radius, "SHOT descriptor support radius (m)")
       ->check(CLI::Range(0.02, 0.5))
       ->excludes(seed_front_end_opt);
+  app.add_option("--surface-keypoints", params.front_end.keypoints.surface_spacing,
+                 "besides the contours, one keypoint per cube of this edge on the surface off the floor and walls "
+                 "(m; 0 = contours only, as the seed)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.

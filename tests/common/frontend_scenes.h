@@ -75,8 +75,9 @@ inline float distanceToBox(const Eigen::Vector3f& p) {
 
 // A 50 x 50 x 60 cm box on a floor, a wall 1.25 m behind it, seen by a Kinect (640x480, noise
 // and disparity quantisation) 3 m from the box: floor and wall fill the whole image, so the
-// box's silhouette is the only depth discontinuity.
-inline SyntheticScene boxOnFloorBeforeWall() {
+// box's silhouette is the only depth discontinuity. Without sensor noise, every floor and wall
+// point lies on its plane.
+inline SyntheticScene boxOnFloorBeforeWall(bool sensor_noise = true) {
   SceneObject box{"box", boxMesh({-kBoxHalf, -kBoxHalf, 0.0f}, {kBoxHalf, kBoxHalf, kBoxHeight}), 0, 0, 0};
   SceneObject wall{"wall", boxMesh({-4.0f, 1.25f, 0.0f}, {4.0f, 1.35f, 3.0f}), 0, 0, 0};
   SyntheticSceneParams params;
@@ -85,6 +86,7 @@ inline SyntheticScene boxOnFloorBeforeWall() {
   // too grazing to keep a surface near its back edge after smoothing.
   params.camera_eye = {0.0f, -2.5f, 1.8f};
   params.camera_target = {0.0f, 0.0f, 0.3f};
+  params.noise.enabled = sensor_noise;
   return composeScene({box, wall}, params);
 }
 

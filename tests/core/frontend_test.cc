@@ -12,6 +12,7 @@
 #include <iostream>
 #include <random>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "core/io/cloud_io.h"
@@ -147,6 +148,37 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
       EXPECT_LT(std::min(dx, dy), 0.03f) << "keypoint inside the box face: " << p.transpose();
     } else {
       EXPECT_NEAR(p.x(), void_x, 0.03f) << "keypoint on the wall away from its silhouette: " << p.transpose();
+    }
+  }
+}
+
+TEST(ExtractFeatures, SurfaceKeypointsAddTheBoxsFacesButNeverTheFloorOrTheWall) {
+  // Without noise: the Kinect's scatters a wall 4 m away over layers 5 cm apart, beyond the plane's
+  // tolerance; keypoints_test checks how the samples keep clear of such points.
+  const Scene scene = boxOnFloorBeforeWall(/*sensor_noise=*/false).scene;
+  Scene unorganized = scene;
+  unorganized.pixel_index.clear();
+  unorganized.image_width = unorganized.image_height = 0;
+  FrontEndParams contours;
+  contours.smoothing.enabled = false;
+  FrontEndParams sampled = contours;
+  sampled.keypoints.surface_spacing = 0.09f;
+  FrontEndParams boundary = contours, boundary_sampled = sampled;
+  boundary.keypoints.unorganized = boundary_sampled.keypoints.unorganized = KeypointMethod::kBoundary;
+  for (const Scene* input : std::vector<const Scene*>{&scene, &unorganized}) {
+    for (const auto& [without, with] : {std::pair{contours, sampled}, std::pair{boundary, boundary_sampled}}) {
+      const FrontEndResult plain = extractFeatures(*input, without, /*apply_smoothing=*/false);
+      const FrontEndResult result = extractFeatures(*input, with, /*apply_smoothing=*/false);
+      ASSERT_TRUE(result.gravity && result.gravity->hasFloor());
+      // The 50 x 50 x 60 cm box's faces in view hold about 1.2 m^2 / (9 cm)^2 = 15 cubes more.
+      EXPECT_GE(result.features.size(), plain.features.size() + 8) << input->source;
+      // Floor and wall points stay in the descriptors' support but are never keypoints: every
+      // keypoint lies on the box, between the floor and its top.
+      for (const auto& p : result.features.positions) {
+        const float height = result.gravity->height(p);
+        EXPECT_GT(height, 0.015f) << "keypoint on the floor: " << p.transpose();
+        EXPECT_LT(height, kBoxHeight + 0.05f) << "keypoint on the wall: " << p.transpose();
+      }
     }
   }
 }

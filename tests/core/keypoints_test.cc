@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <set>
 #include <vector>
 
@@ -129,6 +130,38 @@ TEST(Keypoints, EdgePointsSelectTheirNearestSurfacePointAndMinSpacingKeepsOnePer
   }
   EXPECT_EQ(thinKeypoints(*surface, all, 0.04f), corners);
   expectError([&] { thinKeypoints(*surface, all, -1.0f); }, ErrorCode::kInvalidInput, "keypoints.min_spacing");
+}
+
+TEST(Keypoints, SurfaceSamplesTakeThePointNearestEachCubesCentreAwayFromWhatIsNotEligible) {
+  // 20 x 20 points at the centres of 1 cm voxels from (0.005, 0.005) on: 4 x 4 cubes of 5 cm, each
+  // with a point at its centre's x and y, (i, j) = (2, 7, 12 or 17).
+  const int n = 20;
+  XyzCloud grid = gridPlane(n, 0.01f, 1.025f);
+  for (auto& p : grid) p.x += 0.1f, p.y += 0.1f;
+  std::vector<uint8_t> eligible(grid.size(), 1);
+  std::vector<int> centres;
+  for (int i : {2, 7, 12, 17}) {
+    for (int j : {2, 7, 12, 17}) centres.push_back(i * n + j);
+  }
+  EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.0f}), centres);
+  // Points that are not eligible (the floor, walls) are never taken: the first row of cubes has none.
+  for (int k = 0; k < 5 * n; ++k) eligible[static_cast<size_t>(k)] = 0;
+  const std::vector<int> rows_after_first(centres.begin() + 4, centres.end());
+  EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.0f}), rows_after_first);
+  // With a clearance, nor is a point that near them: the next row's centres lie 3 cm from row 4.
+  EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.025f}), rows_after_first);
+  EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.035f}),
+            std::vector<int>(centres.begin() + 8, centres.end()));
+  // A cube with fewer eligible points than min_points has none: the second row's first cube with 24
+  // of its 25, then 25.
+  eligible[static_cast<size_t>(5 * n)] = 0;
+  EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 25, 0.0f}),
+            std::vector<int>(centres.begin() + 5, centres.end()));
+  EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 24, 0.0f}), rows_after_first);
+  expectError([&] { sampleSurfaceKeypoints(grid, eligible, {0.0f, 1, 0.0f}); }, ErrorCode::kInvalidInput,
+              "keypoints.surface_spacing");
+  eligible.pop_back();
+  expectError([&] { sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.0f}); }, ErrorCode::kInternal, "flags for");
 }
 
 }  // namespace

@@ -244,6 +244,7 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   k.contour.relative_jump = 0.09f;
   k.contour.max_gap = 25;
   k.min_spacing = 0.02f;
+  k.surface_spacing = 0.09f;
   const std::string bytes = serializeModel(model);
   const KeypointParams loaded = parseModel(bytes, "new.ismm").front_end.keypoints;
   EXPECT_EQ(loaded.method, KeypointMethod::kOccludingContour);
@@ -252,6 +253,7 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   EXPECT_EQ(loaded.contour.relative_jump, 0.09f);
   EXPECT_EQ(loaded.contour.max_gap, 25);
   EXPECT_EQ(loaded.min_spacing, 0.02f);
+  EXPECT_EQ(loaded.surface_spacing, 0.09f);
   EXPECT_EQ(loaded.unorganized, KeypointMethod::kRangeImage) << "new models see clouds as range images";
   for (KeypointMethod method : {KeypointMethod::kAuto, KeypointMethod::kBoundary, KeypointMethod::kRangeImage}) {
     k.method = method;
@@ -278,6 +280,7 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   auto* fe = data.mutable_front_end();
   fe->clear_keypoint_method(), fe->clear_contour_window(), fe->clear_contour_min_jump();
   fe->clear_contour_relative_jump(), fe->clear_contour_max_gap(), fe->clear_keypoint_min_spacing();
+  fe->clear_keypoint_surface_spacing();
   fe->clear_unorganized_keypoint_method(), fe->clear_range_image_pixel_spacings(), fe->clear_range_image_max_pixels();
   const auto resealed = [&file](const v1::ModelData& payload) {
     file.set_payload(payload.SerializeAsString());
@@ -289,6 +292,7 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   EXPECT_EQ(old.method, KeypointMethod::kBoundary);
   EXPECT_EQ(old.unorganized, KeypointMethod::kBoundary) << "older models took the boundary test for clouds";
   EXPECT_EQ(old.min_spacing, 0.0f);
+  EXPECT_EQ(old.surface_spacing, 0.0f) << "older models took contours only";
 
   fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);  // contour fields still unset
   expectError([&] { parseModel(resealed(data), "broken.ismm"); }, ErrorCode::kCorruptModel,
