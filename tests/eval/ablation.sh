@@ -23,7 +23,9 @@ mkdir -p "$work"
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
 # Rows before the far training views see each mesh as near as it fits in view.
-near="--view-distance 0"
+# Rows before the surface keypoints take contours alone.
+contours="--surface-keypoints 0"
+near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
 fine="$near --seed-front-end --no-cloud-calibration --no-verification"
 # name | ism-train options (=ROW: that row's model) | ism-eval options | what the row adds
@@ -40,10 +42,11 @@ steps=(
   "clouds|$near --no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
   "verified|$near|--preset default --centre-suppression --map-verification viewpoint|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
   "surface|=verified|--preset default --map-verification viewpoint|+ one object across categories only where one explains the other's verified surface"
-  "far-views||--preset default --map-verification viewpoint|+ training views from 3.5 m rather than as near as the object fits in view"
-  "background|--calibration-background 0|--preset default --map-verification viewpoint|+ codewords weighed against 21 background meshes (manifest rows of category background)"
-  "background-rooms||--preset default --map-verification viewpoint|+ up to 2 of the background meshes in each calibration room"
-  "maps|=background-rooms|--preset default|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint (the default)"
+  "far-views|$contours|--preset default --map-verification viewpoint|+ training views from 3.5 m rather than as near as the object fits in view"
+  "background|$contours --calibration-background 0|--preset default --map-verification viewpoint|+ codewords weighed against 21 background meshes (manifest rows of category background)"
+  "background-rooms|$contours|--preset default --map-verification viewpoint|+ up to 2 of the background meshes in each calibration room"
+  "maps|=background-rooms|--preset default|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
+  "surface-keypoints||--preset default|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours (the default)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
@@ -65,7 +68,7 @@ for step in "${steps[@]}"; do
   else
     start=$(date +%s.%N)
     # shellcheck disable=SC2086
-    "$build/core/ism-train" --manifest "$([[ $name == background* || $name == kinect-window ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
+    "$build/core/ism-train" --manifest "$([[ $name == background* || $name == surface-keypoints || $name == kinect-window ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
       > "$work/$name.train.log"
     seconds=$(echo "$(date +%s.%N) - $start" | bc)
     echo "$seconds" > "$work/$name.seconds"
