@@ -8,7 +8,6 @@
 #include <cstdint>
 #include <string>
 #include <unordered_map>
-#include <unordered_map>
 #include <unordered_set>
 
 #include "core/common/error.h"

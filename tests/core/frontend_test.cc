@@ -153,7 +153,7 @@ TEST(ExtractFeatures, BoxSceneKeypointsLieOnTheBoxOutlineAndStagesAreTimed) {
 }
 
 TEST(ExtractFeatures, SurfaceKeypointsAddTheBoxsFacesButNeverTheFloorOrTheWall) {
-  // Without noise: the Kinect's scatters a wall 4 m away over layers 5 cm apart, beyond the plane's
+  // Without noise: the Kinect's noise scatters a wall 4 m away over layers 5 cm apart, beyond the plane's
   // tolerance; keypoints_test checks how the samples keep clear of such points.
   const Scene scene = boxOnFloorBeforeWall(/*sensor_noise=*/false).scene;
   Scene unorganized = scene;

@@ -152,8 +152,8 @@ TEST(Keypoints, SurfaceSamplesTakeThePointNearestEachCubesCentreAwayFromWhatIsNo
   EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.025f}), rows_after_first);
   EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 1, 0.035f}),
             std::vector<int>(centres.begin() + 8, centres.end()));
-  // A cube with fewer eligible points than min_points has none: the second row's first cube with 24
-  // of its 25, then 25.
+  // A cube with fewer eligible points than min_points has none: the second row's first cube, with 24
+  // of its 25 points eligible, is taken at a minimum of 24 and not at 25.
   eligible[static_cast<size_t>(5 * n)] = 0;
   EXPECT_EQ(sampleSurfaceKeypoints(grid, eligible, {0.05f, 25, 0.0f}),
             std::vector<int>(centres.begin() + 5, centres.end()));

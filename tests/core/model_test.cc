@@ -254,6 +254,10 @@ TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   EXPECT_EQ(loaded.contour.max_gap, 25);
   EXPECT_EQ(loaded.min_spacing, 0.02f);
   EXPECT_EQ(loaded.surface_spacing, 0.09f);
+  k.surface_spacing = -0.09f;
+  expectError([&] { parseModel(serializeModel(model), "broken.ismm"); }, ErrorCode::kCorruptModel,
+              "keypoint_surface_spacing");
+  k.surface_spacing = 0.09f;
   EXPECT_EQ(loaded.unorganized, KeypointMethod::kRangeImage) << "new models see clouds as range images";
   for (KeypointMethod method : {KeypointMethod::kAuto, KeypointMethod::kBoundary, KeypointMethod::kRangeImage}) {
     k.method = method;
