@@ -50,8 +50,11 @@ steps=(
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
+training_manifest=$manifest
 for step in "${steps[@]}"; do
   IFS='|' read -r name train_args eval_args what <<< "$step"
+  # From the background row on, every row trains with the background meshes.
+  [[ $name == background ]] && training_manifest=$background_manifest
   model=$work/$name.ismm
   if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
     [[ -f $work/$name.seconds ]] || { echo "ablation: $name has no earlier run in $work; name it" >&2; exit 1; }
@@ -68,7 +71,7 @@ for step in "${steps[@]}"; do
   else
     start=$(date +%s.%N)
     # shellcheck disable=SC2086
-    "$build/core/ism-train" --manifest "$([[ $name == background* || $name == surface-keypoints || $name == kinect-window ]] && echo "$background_manifest" || echo "$manifest")" -o "$model" --codebook global --no-scene-smoothing $train_args \
+    "$build/core/ism-train" --manifest "$training_manifest" -o "$model" --codebook global --no-scene-smoothing $train_args \
       > "$work/$name.train.log"
     seconds=$(echo "$(date +%s.%N) - $start" | bc)
     echo "$seconds" > "$work/$name.seconds"
