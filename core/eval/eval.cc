@@ -98,7 +98,12 @@ int CountTable::at(const std::string& row, const std::string& col) const {
 }
 
 BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingScan>& test_scans,
-                                const std::vector<NamedStrategy>& strategies, const EvalRecognition& recognition) {
+                                const std::vector<NamedStrategy>& strategies, const EvalRecognition& recognition,
+                                const std::vector<Scene>& scenes) {
+  if (!scenes.empty() && scenes.size() != test_scans.size()) {
+    throw Error(ErrorCode::kInternal, "evaluateBaseline: " + std::to_string(scenes.size()) + " scenes for " +
+                                          std::to_string(test_scans.size()) + " test scans");
+  }
   BaselineResult result;
   for (const auto& c : model.categories) result.categories.push_back(c.name);
   result.test_scans = static_cast<int>(test_scans.size());
@@ -108,7 +113,9 @@ BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingSc
     result.combinations.push_back(
         {s.name, zeroTable(result.categories, result.categories), zeroTable(result.categories, with_none), 0, 0});
   }
-  for (const TrainingScan& scan : test_scans) {
+  for (size_t i = 0; i < test_scans.size(); ++i) {
+    const TrainingScan& scan = test_scans[i];
+    const Scene* scene = scenes.empty() ? nullptr : &scenes[i];
     const int row = indexOf(result.categories, scan.category);
     if (row < 0) {
       throw Error(ErrorCode::kInvalidInput, "test scan of category '" + scan.category + "' (mesh " +
@@ -117,7 +124,7 @@ BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingSc
     for (size_t s = 0; s < strategies.size(); ++s) {
       BaselineCombination& combination = result.combinations[s];
       auto start = std::chrono::steady_clock::now();
-      auto hypotheses = hypothesesForFeatures(model, scan.features, strategies[s].strategy, recognition);
+      auto hypotheses = hypothesesForFeatures(model, scan.features, strategies[s].strategy, recognition, scene);
       combination.recognition_ms += 1000.0 * secondsSince(start);
       std::vector<bool> generated(result.categories.size(), false);
       int best = static_cast<int>(result.categories.size());  // "none"
@@ -144,20 +151,19 @@ BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingSc
 
 BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params, const EvalRecognition& recognition) {
   auto start = std::chrono::steady_clock::now();
-  std::vector<TrainingScan> training_scans = scanMeshes(split.train, params);
-  std::vector<TrainingScan> test_scans = scanMeshes(split.test, params);
-  const double scan_seconds = secondsSince(start);
-
-  std::vector<std::string> categories;
-  for (const auto& m : split.train) {
-    if (indexOf(categories, m.category) < 0) categories.push_back(m.category);
-  }
-  start = std::chrono::steady_clock::now();
-  Model model = trainFromScans(training_scans, categories, params);
+  const Model model = train(split.train, params);
   const double train_seconds = secondsSince(start);
 
-  BaselineResult result = evaluateBaseline(model, test_scans, seedCombinations(model), recognition);
-  result.training_scans = static_cast<int>(training_scans.size());
+  start = std::chrono::steady_clock::now();
+  // The seed preset verifies nothing, so only the default keeps the rendered scenes.
+  std::vector<Scene> scenes;
+  const bool keep_scenes = recognition.preset == RecognitionPreset::kDefault && recognition.verify;
+  std::vector<TrainingScan> test_scans =
+      scanMeshes(split.test, placeMeshes(split.test, params), params, keep_scenes ? &scenes : nullptr);
+  const double scan_seconds = secondsSince(start);
+
+  BaselineResult result = evaluateBaseline(model, test_scans, seedCombinations(model), recognition, scenes);
+  result.training_scans = model.provenance.scans;
   result.scan_seconds = scan_seconds;
   result.train_seconds = train_seconds;
   return result;

@@ -86,19 +86,22 @@ struct BaselineResult {
   std::vector<std::string> categories;  // model order; also the test rows
   int training_scans = 0;
   int test_scans = 0;
-  double scan_seconds = 0;   // virtual scanning + front end, training and test meshes
-  double train_seconds = 0;  // codebooks, votes, thresholds, boxes
+  double scan_seconds = 0;   // virtual scanning + front end of the test meshes
+  double train_seconds = 0;  // train(): scanning the training meshes, codebooks, votes, thresholds, calibration
   std::vector<BaselineCombination> combinations;
 };
 
 // Evaluates `strategies` on test scans (one front end run per scan). Throws Error(kInvalidInput)
 // when a test scan's category is not one of the model's. A scan's category is "generated" by a
-// hypothesis of it or an alternative at or above the operating point.
+// hypothesis of it or an alternative at or above the operating point. `scenes` (index-aligned
+// with the scans, or empty) are what the default preset verifies hypotheses against.
 BaselineResult evaluateBaseline(const Model& model, const std::vector<TrainingScan>& test_scans,
-                                const std::vector<NamedStrategy>& strategies, const EvalRecognition& recognition = {});
+                                const std::vector<NamedStrategy>& strategies, const EvalRecognition& recognition = {},
+                                const std::vector<Scene>& scenes = {});
 
-// Scans train and test meshes, trains once from the training scans and evaluates the seed's
-// combinations.
+// Scans train and test meshes, trains once as ism-train does (train(): with `params`' training
+// shapes and calibration, which the default preset has and the seed's has not) and evaluates
+// the seed's combinations on the test scans as scenes.
 BaselineResult runBaseline(const MeshSplit& split, const TrainingParams& params, const EvalRecognition& recognition = {});
 
 // ---------------------------------------------------------------------------------------------

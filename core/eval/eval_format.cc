@@ -70,8 +70,8 @@ double meanAp25(const RealCombination& combination) {
 std::string formatBaseline(const BaselineResult& result) {
   std::ostringstream out;
   out << "Baseline on synthetic scans: " << result.categories.size() << " categories, " << result.training_scans
-      << " training scans, " << result.test_scans << " test scans; scanning + front end "
-      << fixed(result.scan_seconds, 1) << " s, training " << fixed(result.train_seconds, 1) << " s\n";
+      << " training scans, " << result.test_scans << " test scans; test scans rendered + described in "
+      << fixed(result.scan_seconds, 1) << " s, training (its scans included) " << fixed(result.train_seconds, 1) << " s\n";
   for (const auto& c : result.combinations) {
     out << "\n== " << c.strategy << ": accuracy " << percent(c.accuracy) << ", recognition "
         << fixed(c.recognition_ms, 0) << " ms\n"

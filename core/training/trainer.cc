@@ -328,7 +328,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
 }
 
 std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>& placed,
-                                     const TrainingParams& params) {
+                                     const TrainingParams& params, std::vector<Scene>* scenes) {
   if (placed.size() != meshes.size()) {
     throw Error(ErrorCode::kInternal, "scanMeshes: " + std::to_string(placed.size()) + " placed meshes for " +
                                           std::to_string(meshes.size()));
@@ -347,6 +347,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
   }
   const Mesh floor = floorMesh(params.floor_size);
   std::vector<TrainingScan> scans(jobs.size());
+  if (scenes) scenes->assign(jobs.size(), Scene{});
   std::mutex progress_mutex;
   int done = 0;
   parallelFor(static_cast<int>(jobs.size()), threads, [&](int j) {
@@ -369,6 +370,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     scan.features = extractFeatures(scene, params.front_end, false).features;
     if (scan.features.gravity) setKnownFloor(scan.features);
     scan.keypoint_box = fitOrientedBox(scan.features.positions);
+    if (scenes) (*scenes)[static_cast<size_t>(j)] = std::move(scene);
     if (params.progress) {
       std::lock_guard<std::mutex> lock(progress_mutex);
       params.progress("scanned " + std::to_string(++done) + "/" + std::to_string(jobs.size()) + " " + mesh.category +

@@ -106,10 +106,12 @@ std::vector<Mesh> placeMeshes(const std::vector<TrainingMesh>& meshes, const Tra
 // Per mesh, its index among the meshes of its category (TrainingScan::model_index).
 std::vector<int> modelIndices(const std::vector<TrainingMesh>& meshes);
 
-// Renders and describes every mesh from every view.
+// Renders and describes every mesh from every view. `scenes`, when given, also receives each
+// scan's rendered scene (index-aligned with the scans): evaluation recognises them as a user's
+// frames, verification included.
 std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const TrainingParams& params);
 std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>& placed,
-                                     const TrainingParams& params);
+                                     const TrainingParams& params, std::vector<Scene>* scenes = nullptr);
 
 // Everything after scanning (codebooks, votes, thresholds, boxes); exposed for evaluation.
 // `background`: scans of background meshes (background.h), which weigh every category's codewords.
