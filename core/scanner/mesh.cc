@@ -375,7 +375,13 @@ Mesh placeMesh(const Mesh& mesh, const MeshPlacement& placement) {
     }
     return placement.size[axis] / extent[axis];
   };
-  if (placement.uniform) {
+  if (placement.uniform && (placement.size.array() > 0).all()) {
+    for (int a = 0; a < 3; ++a) ratio(a);  // throws for a flat mesh
+    const float mesh_long = std::max(extent.x(), extent.y()), mesh_short = std::min(extent.x(), extent.y());
+    const float size_long = std::max(placement.size.x(), placement.size.y());
+    const float size_short = std::min(placement.size.x(), placement.size.y());
+    scale.setConstant(std::cbrt(size_long / mesh_long * (size_short / mesh_short) * ratio(2)));
+  } else if (placement.uniform) {
     int axis = 2;  // the height decides; else the first given extent
     while (axis >= 0 && placement.size[axis] == 0) --axis;
     if (axis >= 0) scale.setConstant(ratio(axis));

@@ -29,7 +29,11 @@ struct MeshPlacement {
   // Real size (m) after the up-axis change: x = width, y = depth, z = height. A zero
   // component is derived from the others; all zero keeps the mesh's own size.
   Eigen::Vector3f size = Eigen::Vector3f::Zero();
-  bool uniform = false;  // true: scale by the height only, keep proportions
+  // true: one scale for all axes, keeping the mesh's proportions. With width, depth and height
+  // all given, the scale whose box fits them best (the geometric mean of the three ratios, the
+  // footprint's longer side against the longer given one, since a mesh's front is not known);
+  // else the height's ratio, or the first given extent's.
+  bool uniform = false;
 };
 
 // Returns the mesh +z up, scaled, its bounding box centred on x=y=0 and standing on z=0.

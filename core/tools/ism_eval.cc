@@ -3,6 +3,7 @@
 #include <CLI/CLI.hpp>
 #include <fstream>
 #include <iostream>
+#include <optional>
 
 #include "core/common/error.h"
 #include "core/eval/eval.h"
@@ -64,6 +65,10 @@ int main(int argc, char** argv) {
       ->capture_default_str()->check(CLI::PositiveNumber);
   baseline->add_option("--threads", training.threads, "0 = all cores")->capture_default_str();
   baseline->add_option("--json", json_path, "also write the results as JSON");
+  std::optional<uint32_t> training_seed;
+  baseline->add_option("--seed", training_seed, "another draw of training's randomness, as ism-train --seed");
+  baseline->add_flag("--unsized-by-height", training.unsized_by_height,
+                     "scale meshes without a size by their category's typical height alone (the seed preset's rule)");
 
   CLI::App* real = app.add_subcommand("real", "score a model on real scenes (NAME.pcd + NAME.json)");
   std::string model_path, codebook = "global", activation = "knn", weighting = "lw", viewpoint = "auto";
@@ -133,6 +138,7 @@ int main(int argc, char** argv) {
         split = ism::splitMeshes(meshes, train_per_category, test_per_category);
       }
       training.progress = progress;
+      if (training_seed) ism::reseed(training, *training_seed);
       auto result = ism::runBaseline(split, training, {ism::parseRecognitionPreset(preset), min_confidence});
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);

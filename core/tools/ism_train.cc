@@ -107,6 +107,10 @@ int main(int argc, char** argv) {
   app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "
                  "several seeds tell a method's effect from chance (tests/eval/seeds.sh)");
+  bool unsized_by_height = false;
+  app.add_flag("--unsized-by-height", unsized_by_height,
+               "scale meshes without a size by their category's typical height alone, as the seed preset does, "
+               "instead of fitting their box to its typical width, depth and height");
   bool no_scene_smoothing = false;
   app.add_flag("--no-scene-smoothing", no_scene_smoothing,
                "recognise scenes without MLS smoothing, as training scans are: faster, see docs/EVALUATION.md");
@@ -128,13 +132,8 @@ int main(int argc, char** argv) {
     params.front_end.shot = seed.shot;
   }
   if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
-  if (training_seed) {
-    // Distinct streams per use, each a function of the one seed.
-    params.global_kmeans.seed = *training_seed * 7919u + 1u;
-    params.separated_kmeans.seed = *training_seed * 7919u + 2u;
-    params.noise.seed = *training_seed * 7919u + 3u;
-    params.calibration.seed = *training_seed * 7919u + 4u;
-  }
+  if (training_seed) ism::reseed(params, *training_seed);
+  if (unsized_by_height) params.unsized_by_height = true;
   if (!vote_frame.empty()) params.voting.frame = vote_frame == "lrf" ? ism::VoteFrame::kLrf : ism::VoteFrame::kUpright;
   if (no_gravity) {
     params.front_end.gravity.enabled = false;

@@ -86,8 +86,9 @@ std::vector<TrainingMesh> readManifest(const std::string& path) {
       mesh.placement.size[d++] = number(std::string(axis) + "_m", 1.0f) + number(std::string(axis) + "_cm", 0.01f);
     }
     if (mesh.placement.size.isZero()) {
-      mesh.placement.size = Eigen::Vector3f(0, 0, defaultCategorySize(mesh.category).z());
-      mesh.placement.uniform = true;  // unknown proportions: keep the mesh's own
+      // Unknown proportions: the mesh's own, at the scale that best fits the category's typical size.
+      mesh.placement.size = defaultCategorySize(mesh.category);
+      mesh.placement.uniform = true;
     }
     const std::string up = field("up");
     if (up == "z" || up == "Z") {
@@ -135,7 +136,7 @@ std::vector<TrainingMesh> meshesFromFolders(const std::string& root) {
       TrainingMesh mesh;
       mesh.category = category;
       mesh.path = file.string();
-      mesh.placement.size = Eigen::Vector3f(0, 0, defaultCategorySize(category).z());
+      mesh.placement.size = defaultCategorySize(category);
       mesh.placement.uniform = true;
       meshes.push_back(std::move(mesh));
     }

@@ -290,11 +290,20 @@ TrainingParams seedTrainingParams() {
   params.front_end.keypoints.unorganized = KeypointMethod::kBoundary;
   params.voting = VotingParams{VoteFrame::kLrf, 0.0f};
   params.render_floor = false;
+  params.unsized_by_height = true;
   params.calibration.enabled = false;
   params.shape_spacing = 0;
   params.noise.projector_shadow = false;
   params.views.min_distance = 0;
   return params;
+}
+
+void reseed(TrainingParams& params, uint32_t seed) {
+  // Distinct streams per use, each a function of the one seed.
+  params.global_kmeans.seed = seed * 7919u + 1u;
+  params.separated_kmeans.seed = seed * 7919u + 2u;
+  params.noise.seed = seed * 7919u + 3u;
+  params.calibration.seed = seed * 7919u + 4u;
 }
 
 float defaultBinSize(const std::string& category) {
@@ -310,7 +319,9 @@ std::vector<Mesh> placeMeshes(const std::vector<TrainingMesh>& meshes, const Tra
   const auto start = Clock::now();
   std::vector<Mesh> placed(meshes.size());
   parallelFor(static_cast<int>(meshes.size()), threadCount(params), [&](int i) {
-    placed[static_cast<size_t>(i)] = placeMesh(loadMesh(meshes[static_cast<size_t>(i)].path), meshes[static_cast<size_t>(i)].placement);
+    MeshPlacement placement = meshes[static_cast<size_t>(i)].placement;
+    if (placement.uniform && params.unsized_by_height && placement.size.z() > 0) placement.size.head<2>().setZero();
+    placed[static_cast<size_t>(i)] = placeMesh(loadMesh(meshes[static_cast<size_t>(i)].path), placement);
   });
   if (params.progress) params.progress("loaded " + std::to_string(meshes.size()) + " meshes in " + fixed(secondsSince(start), 1) + " s");
   return placed;

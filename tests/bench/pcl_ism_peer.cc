@@ -226,8 +226,7 @@ TrainingSet renderTrainingScans(const std::vector<ism::TrainingMesh>& meshes, co
   set.categories = categoriesOf(meshes);
   ism::TrainingParams params;  // the scanner settings ism-train uses
   params.views.views = p.views;
-  std::vector<ism::Mesh> placed(meshes.size());
-  for (size_t i = 0; i < meshes.size(); ++i) placed[i] = ism::placeMesh(ism::loadMesh(meshes[i].path), meshes[i].placement);
+  const std::vector<ism::Mesh> placed = ism::placeMeshes(meshes, params);
   std::vector<std::vector<Eigen::Isometry3f>> views(meshes.size());
   std::vector<std::pair<size_t, size_t>> jobs;  // (mesh, view), in scanMeshes()'s order: it seeds the noise
   for (size_t m = 0; m < meshes.size(); ++m) {

@@ -6,6 +6,7 @@
 #include <fstream>
 
 #include "core/common/error.h"
+#include "core/training/trainer.h"
 
 namespace ism {
 namespace {
@@ -41,8 +42,8 @@ TEST_F(TrainingFiles, ReadsAManifest) {
   EXPECT_EQ(meshes[0].credit, "someone, CC-BY");
   EXPECT_EQ(meshes[1].path, "/abs/chair.off");
   EXPECT_EQ(meshes[1].placement.up, UpAxis::kY);
-  EXPECT_TRUE(meshes[1].placement.uniform);  // no size given: typical height, own proportions
-  EXPECT_EQ(meshes[1].placement.size.z(), defaultCategorySize("dining_chair").z());
+  EXPECT_TRUE(meshes[1].placement.uniform);  // no size given: own proportions, fitted to the typical size
+  EXPECT_TRUE(meshes[1].placement.size.isApprox(defaultCategorySize("dining_chair")));
 }
 
 TEST_F(TrainingFiles, ManifestErrorsNameTheLine) {
@@ -72,6 +73,31 @@ TEST_F(TrainingFiles, FindsMeshesInCategoryFolders) {
   EXPECT_EQ(meshes[2].placement.size.z(), defaultCategorySize("dining_table").z());
   write("spaceship/s.obj", "");
   EXPECT_THROW(meshesFromFolders(dir.string()), Error);  // no size known for it
+}
+
+TEST_F(TrainingFiles, UnsizedMeshesFitTheTypicalBoxOrTheSeedsHeight) {
+  // A Y-up box 6 wide, 1 high, 1 deep, listed as a couch without a size.
+  std::string obj;
+  for (float x : {-3.0f, 3.0f}) {
+    for (float y : {0.0f, 1.0f}) {
+      for (float z : {-0.5f, 0.5f}) obj += "v " + std::to_string(x) + " " + std::to_string(y) + " " + std::to_string(z) + "\n";
+    }
+  }
+  obj += "f 1 2 4\nf 1 4 3\nf 5 7 8\nf 5 8 6\nf 1 5 6\nf 1 6 2\nf 3 4 8\nf 3 8 7\nf 1 3 7\nf 1 7 5\nf 2 6 8\nf 2 8 4\n";
+  write("couch/long.obj", obj);
+  const auto meshes = meshesFromFolders(dir.string());
+  ASSERT_EQ(meshes.size(), 1u);
+  const Eigen::Vector3f typical = defaultCategorySize("couch");  // 2.0 x 0.9 x 0.85
+
+  // The default: one factor, the geometric mean of 2.0 / 6, 0.9 / 1 and 0.85 / 1.
+  TrainingParams params;
+  params.threads = 1;
+  const float fit = std::cbrt(typical.x() / 6 * typical.y() * typical.z());
+  EXPECT_TRUE(placeMeshes(meshes, params)[0].bounds().sizes().isApprox(Eigen::Vector3f(6, 1, 1) * fit, 1e-4f));
+
+  // The seed's preset: the height alone, so the couch comes out 5.1 m long.
+  params.unsized_by_height = seedTrainingParams().unsized_by_height;
+  EXPECT_TRUE(placeMeshes(meshes, params)[0].bounds().sizes().isApprox(Eigen::Vector3f(6, 1, 1) * typical.z(), 1e-4f));
 }
 
 }  // namespace

@@ -180,7 +180,14 @@ TEST(PlaceMesh, RealSizeZUpCentredOnTheFloor) {
   EXPECT_NEAR(box.center().x(), 0, 1e-6);
   EXPECT_NEAR(box.center().y(), 0, 1e-6);
 
-  placement.uniform = true;  // height 3 -> 0.9 is a factor 0.3 for all axes
+  // Uniform with all three sizes: one factor, the geometric mean of the three ratios, the longer
+  // side of the footprint (2) against the longer given one (0.5): cbrt(0.25 * 0.4 * 0.3).
+  placement.uniform = true;
+  box = placeMesh(y_up, placement).bounds();
+  const float fit = std::cbrt(0.25f * 0.4f * 0.3f);
+  EXPECT_TRUE(box.sizes().isApprox(Eigen::Vector3f(2, 1, 3) * fit, 1e-5f)) << box.sizes().transpose();
+
+  placement.size = {0.0f, 0.0f, 0.9f};  // uniform with the height alone: 3 -> 0.9 is 0.3 for all axes
   box = placeMesh(y_up, placement).bounds();
   EXPECT_TRUE(box.sizes().isApprox(Eigen::Vector3f(0.6f, 0.3f, 0.9f), 1e-5f)) << box.sizes().transpose();
 

@@ -2,8 +2,9 @@
 # Reproduces the seed baseline tables (docs/EVALUATION.md): the seed's own Princeton Shape
 # Benchmark models (in the development data), 3 training and 2 test meshes per category, 12
 # virtual scans each, all six codebook/activation/weighting combinations. Unit-normalised PSB
-# meshes are scaled uniformly to their category's typical height (ism-train's default for meshes
-# without a size).
+# meshes keep their proportions at the one scale that best fits their category's typical width,
+# depth and height (ism-train's default for meshes without a size; the seed preset and
+# --unsized-by-height scale them to the typical height alone).
 #   tests/eval/seed_baseline.sh [BUILD_DIR] [extra ism-eval options]
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
