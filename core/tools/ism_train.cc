@@ -107,8 +107,7 @@ int main(int argc, char** argv) {
   app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "
                  "several seeds tell a method's effect from chance (tests/eval/seeds.sh)");
-  bool unsized_by_height = false;
-  app.add_flag("--unsized-by-height", unsized_by_height,
+  app.add_flag("--unsized-by-height", params.unsized_by_height,
                "scale meshes without a size by their category's typical height alone, as the seed preset does, "
                "instead of fitting their box to its typical width, depth and height");
   bool no_scene_smoothing = false;
@@ -133,7 +132,6 @@ int main(int argc, char** argv) {
   }
   if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
   if (training_seed) ism::reseed(params, *training_seed);
-  if (unsized_by_height) params.unsized_by_height = true;
   if (!vote_frame.empty()) params.voting.frame = vote_frame == "lrf" ? ism::VoteFrame::kLrf : ism::VoteFrame::kUpright;
   if (no_gravity) {
     params.front_end.gravity.enabled = false;
