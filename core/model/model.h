@@ -68,6 +68,11 @@ struct VotingParams {
   // above the floor was within this of its own (m): furniture stands on the floor, so a part seen
   // at 1.6 m is no chair's seat. 0 turns the test off.
   float height_tolerance = 0;
+  // What the height test does with a codeword's votes at other heights. false: they are lost
+  // mass (each kept vote weighs 1 / all of the codeword's votes), so a codeword seen at many
+  // heights votes little wherever it fires. true: the keypoint's weight spreads over the votes at
+  // its height, p(centre | codeword, height) rather than p(centre, height | codeword).
+  bool height_normalized = false;
 };
 
 // Votes stored under each codeword, CSR layout: votes of codeword i are

@@ -239,6 +239,7 @@ class Reader {
     if (!(v.height_tolerance >= 0 && std::isfinite(v.height_tolerance))) {
       fail("voting height_tolerance " + std::to_string(v.height_tolerance) + " is not >= 0");
     }
+    v.height_normalized = in.voting().height_normalized();
     return v;
   }
 
@@ -456,6 +457,7 @@ std::string serializeModel(const Model& model) {
   toProto(model.front_end.gravity, fe->mutable_gravity());
   data.mutable_voting()->set_frame(model.voting.frame == VoteFrame::kLrf ? v1::VOTE_FRAME_LRF : v1::VOTE_FRAME_UPRIGHT);
   data.mutable_voting()->set_height_tolerance(model.voting.height_tolerance);
+  data.mutable_voting()->set_height_normalized(model.voting.height_normalized);
   toProto(model.trained_knn, data.mutable_trained_knn());
   toProto(model.trained_cutoff, data.mutable_trained_cutoff());
   if (model.global_codebook) toProto(*model.global_codebook, data.mutable_global_codebook());

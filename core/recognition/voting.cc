@@ -58,6 +58,7 @@ VoteCaster::VoteCaster(const Model& model, int category_index, const Features& f
       table_(votesOf(category_, strategy.codebook)),
       features_(features),
       weighting_(strategy.weighting),
+      height_normalized_(model.voting.height_normalized),
       offsets_(features.size() + 1, 0),
       vote_offsets_(features.size() + 1, 0) {
   if (table_.empty()) return;

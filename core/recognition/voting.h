@@ -84,8 +84,8 @@ class VoteCaster {
   // Calls f(weight, first, last) for each of keypoint k's activations with votes, in order: its
   // votes are those of table_ rows [first, last), each with that weight. With the height test
   // (VotingParams::height_tolerance) the rows are those of training keypoints at about k's
-  // height; the weights still spread over all of the codeword's votes, so the votes a height
-  // rules out are lost mass rather than mass moved to the others.
+  // height; the weights spread over all of the codeword's votes, so that the votes a height rules
+  // out are lost mass, or with VotingParams::height_normalized over those rows alone.
   template <typename F>
   void forEachActivation(size_t k, F&& f) const {
     const uint32_t begin = offsets_[k], end = offsets_[k + 1];
@@ -96,7 +96,7 @@ class VoteCaster {
       if (first == last) continue;
       float weight = table_.codewordWeight(a.codeword);
       if (weighting_ != VoteWeighting::kCategorization) {
-        weight /= activated * static_cast<float>(table_.occurrences(a.codeword));
+        weight /= activated * static_cast<float>(height_normalized_ ? last - first : table_.occurrences(a.codeword));
         if (weighting_ == VoteWeighting::kActivation) weight *= 1.0f - a.distance / 2.0f;
       }
       f(weight, first, last);
@@ -141,6 +141,7 @@ class VoteCaster {
   const VoteTable& table_;
   const Features& features_;
   VoteWeighting weighting_;
+  bool height_normalized_;
   std::vector<uint32_t> offsets_;  // activations of keypoint k: by_keypoint_[offsets_[k] .. offsets_[k+1])
   std::vector<size_t> vote_offsets_;  // votes of keypoint k: [vote_offsets_[k], vote_offsets_[k+1])
   std::vector<Activation> by_keypoint_;

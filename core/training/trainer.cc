@@ -288,7 +288,7 @@ TrainingParams seedTrainingParams() {
   params.front_end = FrontEndParams{};  // the thesis's radii
   params.front_end.gravity.enabled = false;
   params.front_end.keypoints.unorganized = KeypointMethod::kBoundary;
-  params.voting = VotingParams{VoteFrame::kLrf, 0.0f};
+  params.voting = VotingParams{VoteFrame::kLrf, 0.0f, false};
   params.render_floor = false;
   params.unsized_by_height = true;
   params.calibration.enabled = false;

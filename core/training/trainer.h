@@ -48,7 +48,7 @@ struct TrainingParams {
   // defaultFrontEnd(); smoothing is stored for scenes; training scans are not smoothed
   FrontEndParams front_end = defaultFrontEnd();
   // Upright votes with the height test: see VotingParams. The seed's: LRF votes, no heights.
-  VotingParams voting{VoteFrame::kUpright, 0.1f};
+  VotingParams voting{VoteFrame::kUpright, 0.1f, true};
   // Scans see the mesh standing on a floor, as a robot sees furniture: its legs end on the floor
   // rather than against empty space, and the floor (never a keypoint) is in its descriptors'
   // support. The seed rendered the mesh alone.

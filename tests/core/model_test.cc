@@ -29,6 +29,7 @@ Model sampleModel() {
   m.front_end.smoothing.enabled = false;
   m.front_end.shot.min_neighbours = 7;
   m.trained_knn.k = 2;
+  m.voting = {VoteFrame::kUpright, 0.15f, true};
   m.trained_cutoff.cutoff = 0.3f;
   m.global_codebook = Codebook(DescriptorMatrix::Random(6, 352));
   for (const char* name : {"couch", "bed"}) {
@@ -104,6 +105,9 @@ TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
   EXPECT_EQ(r.front_end.shot.min_neighbours, 7);
   EXPECT_EQ(r.front_end.keypoints.angle_threshold, m.front_end.keypoints.angle_threshold);
   EXPECT_EQ(r.trained_knn.k, 2);
+  EXPECT_EQ(r.voting.frame, VoteFrame::kUpright);
+  EXPECT_EQ(r.voting.height_tolerance, 0.15f);
+  EXPECT_TRUE(r.voting.height_normalized);
   EXPECT_EQ(r.trained_cutoff.strategy, ActivationStrategy::kCutoff);
   EXPECT_EQ(r.trained_cutoff.cutoff, 0.3f);
   ASSERT_TRUE(r.global_codebook);

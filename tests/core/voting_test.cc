@@ -71,6 +71,32 @@ TEST(CastVotes, CodewordWeightsScaleTheirVotes) {
   EXPECT_FLOAT_EQ(lw[3].weight, 0.25f / (2 * 5));
 }
 
+// The height test casts only the votes of training keypoints near the keypoint's height; the
+// others are lost mass, or with height_normalized the keypoint's weight goes to those it casts.
+TEST(CastVotes, TheHeightTestLosesOtherHeightsMassUnlessNormalized) {
+  Features f;
+  f.positions = {Eigen::Vector3f::Zero()};
+  f.lrfs = {Eigen::Matrix3f::Identity()};
+  f.heights = {0.5f};
+  // Training keypoints at 0.1, 0.12, 0.48 and 0.9 m (ascending, as packVotes stores them).
+  Model m = modelWithVotes({{Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitX(), Eigen::Vector3f::UnitY(),
+                             Eigen::Vector3f::UnitZ()}});
+  m.categories[0].global_votes.heights = {0.1f, 0.12f, 0.48f, 0.9f};
+  m.voting.height_tolerance = 0.1f;
+  const std::vector<Activation> activations{{0, 0, 0.2f}};
+  const auto lost = castVotes(m, 0, f, activations, strategy(VoteWeighting::kLocalization));
+  ASSERT_EQ(lost.size(), 1u);
+  EXPECT_LT((lost[0].position - Eigen::Vector3f::UnitY()).norm(), 1e-6f);
+  EXPECT_FLOAT_EQ(lost[0].weight, 1.0f / 4);
+  m.voting.height_normalized = true;
+  const auto normalized = castVotes(m, 0, f, activations, strategy(VoteWeighting::kLocalization));
+  ASSERT_EQ(normalized.size(), 1u);
+  EXPECT_FLOAT_EQ(normalized[0].weight, 1.0f);
+  // A keypoint at a height no training keypoint had casts nothing either way.
+  f.heights = {0.7f};
+  EXPECT_TRUE(castVotes(m, 0, f, activations, strategy(VoteWeighting::kLocalization)).empty());
+}
+
 TEST(CastVotes, RejectsActivationsOutsideTheTable) {
   const HandMadeObject o = handMadeObject(Eigen::Vector3f::Zero(), 2);
   const Model m = modelWithVotes(o.votes);
