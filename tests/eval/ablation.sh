@@ -24,7 +24,7 @@ mkdir -p "$work"
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
 # Rows before the far training views see each mesh as near as it fits in view.
 # Rows before the surface keypoints take contours alone.
-contours="--surface-keypoints 0"
+contours="--surface-keypoints 0 --height-weighting lost"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
 fine="$near --seed-front-end --no-cloud-calibration --no-verification"
@@ -46,7 +46,8 @@ steps=(
   "background|$contours --calibration-background 0|--preset default --map-verification viewpoint|+ codewords weighed against 21 background meshes (manifest rows of category background)"
   "background-rooms|$contours|--preset default --map-verification viewpoint|+ up to 2 of the background meshes in each calibration room"
   "maps|=background-rooms|--preset default|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
-  "surface-keypoints||--preset default|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours (the default)"
+  "surface-keypoints|--height-weighting lost|--preset default|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
+  "height-normalized||--preset default|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's (the default)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
