@@ -23,7 +23,8 @@ mkdir -p "$work"
 # Rows before the projector's shadow train without it, rows before the coarse front end at the
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
 # Rows before the far training views see each mesh as near as it fits in view.
-# Rows before the surface keypoints take contours alone.
+# Rows before the surface keypoints take contours alone; rows before the height test's
+# normalisation spread a keypoint's weight over all of its codeword's votes.
 contours="--surface-keypoints 0 --height-weighting lost"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
