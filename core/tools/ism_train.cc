@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <cstdint>
 #include <iostream>
+#include <map>
 #include <optional>
 
 #include "core/common/error.h"
@@ -68,7 +69,7 @@ int main(int argc, char** argv) {
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.
   bool no_gravity = false, no_training_floor = false, no_calibration = false, no_shapes = false, no_shadow = false;
-  std::string vote_frame, cloud_keypoints, height_weighting;
+  std::string vote_frame, cloud_keypoints;
   app.add_option("--cloud-keypoints", cloud_keypoints,
                  "keypoints of unorganized clouds: range-image (contours seen from the sensor, the default) or boundary "
                  "(the seed's)")
@@ -79,10 +80,10 @@ int main(int argc, char** argv) {
   app.add_option("--height-tolerance", params.voting.height_tolerance,
                  "cast only the votes of training keypoints within this height of the keypoint's (m); 0 = off")
       ->check(CLI::NonNegativeNumber);
-  app.add_option("--height-weighting", height_weighting,
+  app.add_option("--height-weighting", params.voting.height_normalized,
                  "the height test's weights: normalized (a keypoint's weight spreads over the votes at its height, the "
                  "default) or lost (over all of its codeword's votes, so that those at other heights are lost)")
-      ->check(CLI::IsMember({"normalized", "lost"}));
+      ->transform(CLI::CheckedTransformer(std::map<std::string, bool>{{"normalized", true}, {"lost", false}}));
   app.add_flag("--no-training-floor", no_training_floor, "render the training meshes without a floor");
   app.add_flag("--no-calibration", no_calibration, "no confidence calibration on rendered rooms");
   bool no_cloud_calibration = false;
@@ -137,7 +138,6 @@ int main(int argc, char** argv) {
   if (no_scene_smoothing) params.front_end.smoothing.enabled = false;
   if (training_seed) ism::reseed(params, *training_seed);
   if (!vote_frame.empty()) params.voting.frame = vote_frame == "lrf" ? ism::VoteFrame::kLrf : ism::VoteFrame::kUpright;
-  if (!height_weighting.empty()) params.voting.height_normalized = height_weighting == "normalized";
   if (no_gravity) {
     params.front_end.gravity.enabled = false;
     params.voting = {ism::VoteFrame::kLrf, 0.0f};
