@@ -39,6 +39,7 @@ struct EvalRecognition {
   bool verify = true;  // default preset, where the scene is at hand
   bool shared_surface = true;  // SuppressionParams::shared_surface
   bool maps_in_3d = true;      // VerificationParams::maps_in_3d
+  bool top_extent = true;      // TopExtentParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

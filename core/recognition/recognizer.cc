@@ -203,10 +203,13 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     }
     if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity, options.suppression);
     verifyHypotheses(view, model, own, options.verification, options.should_stop);
+    const bool flat = options.top_extent.enabled && flatTopped(model.categories[static_cast<size_t>(plan.categories[s])], options.top_extent);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
-      if (h.confidence >= std::max(options.min_confidence, kLowestConfidence)) verified.push_back(std::move(h));
+      if (h.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
+      if (flat) extendToTop(view, h, options.top_extent);
+      verified.push_back(std::move(h));
     }
   }
   all = std::move(verified);

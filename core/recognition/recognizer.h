@@ -18,6 +18,7 @@
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/suppression.h"
+#include "core/recognition/top_extent.h"
 #include "core/recognition/verification.h"
 #include "core/recognition/voting.h"
 
@@ -54,6 +55,9 @@ struct RecognitionOptions {
   // box becomes the best fitting shape's.
   bool verify = true;
   VerificationParams verification;
+  // Default preset, verified hypotheses of flat-topped categories (tables): the box spans the
+  // scene's top surface there rather than the fitted shape (top_extent.h).
+  TopExtentParams top_extent;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)

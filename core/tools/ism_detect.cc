@@ -59,6 +59,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
   bool no_verify = false;
   app.add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified against the scene");
+  bool no_top_extent = false;
+  app.add_flag("--no-top-extent", no_top_extent,
+               "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -93,6 +96,7 @@ int main(int argc, char** argv) {
     }
     options.box_selection = !no_box_selection;
     options.verify = !no_verify;
+    options.top_extent.enabled = !no_top_extent;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 

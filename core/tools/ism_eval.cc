@@ -106,6 +106,10 @@ int main(int argc, char** argv) {
                    "(verification.h)")
       ->check(CLI::IsMember({"3d", "viewpoint"}))
       ->capture_default_str();
+  bool no_top_extent = false;
+  real->add_flag("--no-top-extent", no_top_extent,
+                 "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top "
+                 "(top_extent.h)");
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -145,7 +149,7 @@ int main(int argc, char** argv) {
     } else {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
-                            map_verification == "3d"};
+                            map_verification == "3d", !no_top_extent};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

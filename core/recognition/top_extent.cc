@@ -1,0 +1,205 @@
+#include "core/recognition/top_extent.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <vector>
+
+#include <Eigen/Eigenvalues>
+
+#include "core/common/upright_box.h"
+
+namespace ism {
+namespace {
+
+constexpr float kBin = 0.02f;  // the top's height is sought in layers this thick (m)
+
+// A square grid of top_points over the gravity frame's x and y, flags per cell.
+class Grid {
+ public:
+  Grid(Eigen::Vector2f min, float cell, int n) : min_(min), cell_(cell), n_(n), flags_(static_cast<size_t>(n) * n, 0) {}
+  int n() const { return n_; }
+  bool cellOf(const Eigen::Vector2f& p, int& x, int& y) const {
+    const Eigen::Vector2f f = (p - min_) / cell_;
+    if (!(f.x() >= 0 && f.y() >= 0)) return false;
+    x = static_cast<int>(f.x()), y = static_cast<int>(f.y());
+    return x < n_ && y < n_;
+  }
+  Eigen::Vector2f centre(int x, int y) const {
+    return min_ + cell_ * Eigen::Vector2f(static_cast<float>(x) + 0.5f, static_cast<float>(y) + 0.5f);
+  }
+  bool at(int x, int y) const { return x >= 0 && y >= 0 && x < n_ && y < n_ && flags_[index(x, y)] != 0; }
+  void set(int x, int y, bool v = true) { flags_[index(x, y)] = v ? 1 : 0; }
+
+  // Morphology with the 3 x 3 square; outside the grid is empty.
+  Grid dilated() const { return morph(false); }
+  Grid eroded() const { return morph(true); }
+  Grid operator&(const Grid& other) const {
+    Grid out = *this;
+    for (size_t i = 0; i < flags_.size(); ++i) out.flags_[i] = flags_[i] & other.flags_[i];
+    return out;
+  }
+
+ private:
+  size_t index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(n_) + static_cast<size_t>(x); }
+  Grid morph(bool all) const {
+    Grid out(min_, cell_, n_);
+    for (int y = 0; y < n_; ++y) {
+      for (int x = 0; x < n_; ++x) {
+        bool v = all;
+        for (int dy = -1; dy <= 1 && v == all; ++dy) {
+          for (int dx = -1; dx <= 1 && v == all; ++dx) {
+            if (at(x + dx, y + dy) != all) v = !all;
+          }
+        }
+        out.set(x, y, v);
+      }
+    }
+    return out;
+  }
+  Eigen::Vector2f min_;
+  float cell_;
+  int n_;
+  std::vector<uint8_t> flags_;
+};
+
+// The smallest of the rectangles about `points` whose axes follow one of `yaws`: its centre, its
+// sides along its own x and y, and its yaw.
+void tightestRectangle(const std::vector<Eigen::Vector2f>& points, const std::vector<float>& yaws,
+                       Eigen::Vector2f& centre, Eigen::Vector2f& sides, float& yaw) {
+  float best = std::numeric_limits<float>::infinity();
+  for (const float candidate : yaws) {
+    const float c = std::cos(candidate), s = std::sin(candidate);
+    Eigen::Vector2f lo = Eigen::Vector2f::Constant(std::numeric_limits<float>::infinity()), hi = -lo;
+    for (const auto& p : points) {
+      const Eigen::Vector2f local(c * p.x() + s * p.y(), -s * p.x() + c * p.y());
+      lo = lo.cwiseMin(local);
+      hi = hi.cwiseMax(local);
+    }
+    const Eigen::Vector2f size = hi - lo;
+    if (size.prod() >= best) continue;
+    best = size.prod();
+    const Eigen::Vector2f mid = (lo + hi) / 2;
+    centre = {c * mid.x() - s * mid.y(), s * mid.x() + c * mid.y()};
+    sides = size;
+    yaw = candidate;
+  }
+}
+
+}  // namespace
+
+bool flatTopped(const CategoryModel& category, const TopExtentParams& params) {
+  int shapes = 0, flat = 0;
+  for (const auto& o : category.objects) {
+    if (o.surface.empty()) continue;
+    float top = -std::numeric_limits<float>::infinity();
+    for (const auto& p : o.surface) top = std::max(top, p.z());
+    const auto near_top = std::count_if(o.surface.begin(), o.surface.end(),
+                                        [&](const Eigen::Vector3f& p) { return p.z() >= top - params.layer; });
+    ++shapes;
+    if (static_cast<float>(near_top) >= params.min_top_share * static_cast<float>(o.surface.size())) ++flat;
+  }
+  return shapes > 0 && 2 * flat > shapes;
+}
+
+void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
+  if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return;
+  const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
+  const Eigen::Vector3f sensor = scene.to_gravity * scene.origin;
+  const Eigen::Vector3f centre = box.center - sensor;  // scene.points' frame
+  const float bottom = scene.floor_z.value_or(centre.z() - box.size.z() / 2);
+  const float fitted_top = centre.z() + box.size.z() / 2;
+  const float c = std::cos(box.yaw), s = std::sin(box.yaw);
+  const auto in_footprint = [&](const Eigen::Vector3f& p) {
+    const float dx = p.x() - centre.x(), dy = p.y() - centre.y();
+    return std::abs(c * dx + s * dy) <= box.size.x() / 2 && std::abs(-s * dx + c * dy) <= box.size.y() / 2;
+  };
+
+  // The top's height: the densest thin layer over the fitted footprint near the fitted top.
+  const float from = fitted_top - params.below;
+  std::vector<int> layers(static_cast<size_t>(std::ceil((params.below + params.above) / kBin)), 0);
+  for (const auto& p : scene.points) {
+    const float z = p.z() - from;
+    if (z < 0 || z >= static_cast<float>(layers.size()) * kBin || !in_footprint(p)) continue;
+    ++layers[std::min(layers.size() - 1, static_cast<size_t>(z / kBin))];
+  }
+  const auto densest = std::max_element(layers.begin(), layers.end());
+  if (*densest < params.min_points) return;
+  const float top = from + (static_cast<float>(densest - layers.begin()) + 0.5f) * kBin;
+  if (top <= bottom + 2 * params.layer) return;
+
+  // The measured points at that height, on a grid about the fitted box.
+  const int n = std::max(3, static_cast<int>(std::ceil(params.max_side / params.cell)));
+  const float half = 0.5f * params.cell * static_cast<float>(n);
+  Grid measured(centre.head<2>() - Eigen::Vector2f::Constant(half), params.cell, n);
+  std::vector<Eigen::Vector2f> layer;
+  for (const auto& p : scene.points) {
+    int x = 0, y = 0;
+    if (std::abs(p.z() - top) > params.layer || !measured.cellOf(p.head<2>(), x, y)) continue;
+    measured.set(x, y);
+    layer.push_back(p.head<2>());
+  }
+  // Closed over a sample's holes, then opened: a part one or two top_points thin at this height (a
+  // backrest, a wall, a monitor's foot) does not join the top to what stands beside it.
+  const Grid closed = measured.dilated().eroded();
+  const Grid opened = closed.eroded().dilated() & closed;
+
+  // Grown from the top_points within the fitted footprint.
+  Grid reached(centre.head<2>() - Eigen::Vector2f::Constant(half), params.cell, n);
+  std::vector<std::pair<int, int>> frontier;
+  for (int y = 0; y < n; ++y) {
+    for (int x = 0; x < n; ++x) {
+      const Eigen::Vector2f at = opened.centre(x, y);
+      if (opened.at(x, y) && in_footprint({at.x(), at.y(), top})) {
+        reached.set(x, y);
+        frontier.emplace_back(x, y);
+      }
+    }
+  }
+  if (frontier.empty()) return;
+  while (!frontier.empty()) {
+    const auto [x, y] = frontier.back();
+    frontier.pop_back();
+    for (int dy = -1; dy <= 1; ++dy) {
+      for (int dx = -1; dx <= 1; ++dx) {
+        if (opened.at(x + dx, y + dy) && !reached.at(x + dx, y + dy)) {
+          reached.set(x + dx, y + dy);
+          frontier.emplace_back(x + dx, y + dy);
+        }
+      }
+    }
+  }
+
+  // The measured points of the top (not the top_points, which would add up to a cell on each side),
+  // boxed along the fitted heading or their own main axis, whichever is tighter.
+  std::vector<Eigen::Vector2f> top_points;
+  for (const auto& p : layer) {
+    int x = 0, y = 0;
+    if (reached.cellOf(p, x, y) && reached.at(x, y)) top_points.push_back(p);
+  }
+  if (top_points.empty()) return;
+  std::vector<float> yaws{box.yaw};
+  if (top_points.size() >= 3) {
+    Eigen::Vector2f mean = Eigen::Vector2f::Zero();
+    for (const auto& p : top_points) mean += p;
+    mean /= static_cast<float>(top_points.size());
+    Eigen::Matrix2f covariance = Eigen::Matrix2f::Zero();
+    for (const auto& p : top_points) covariance += (p - mean) * (p - mean).transpose();
+    const Eigen::SelfAdjointEigenSolver<Eigen::Matrix2f> solver(covariance);
+    const Eigen::Vector2f axis = solver.eigenvectors().col(1);  // largest eigenvalue last
+    yaws.push_back(std::atan2(axis.y(), axis.x()));
+  }
+  Eigen::Vector2f middle, sides;
+  float yaw = box.yaw;
+  tightestRectangle(top_points, yaws, middle, sides, yaw);
+  // Samples of a surface stop short of its edges by about half their spacing.
+  const float spacing = std::sqrt(sides.prod() / static_cast<float>(top_points.size()));
+  sides += Eigen::Vector2f::Constant(spacing);
+  UprightBox extent;
+  extent.center = Eigen::Vector3f(middle.x(), middle.y(), (bottom + top) / 2) + sensor;
+  extent.size = {sides.x(), sides.y(), top - bottom};
+  extent.yaw = yaw;
+  hypothesis.box = extent.toScene(scene.to_gravity);
+}
+
+}  // namespace ism

@@ -1,0 +1,44 @@
+#pragma once
+// A table's box from the scene's own table top. Tables and desks come in every length, and a
+// training shape's box covers only as much as that shape: a 2.4 m desk was answered as two
+// 1.2 m tables, and a 5.6 m dining table as one 1.1 m table at its near end, neither overlapping
+// the real top by a quarter. A category whose training shapes are flat-topped (most of their
+// surface at their top: tables, desks) has its verified hypotheses' boxes taken from the
+// horizontal surface at the fitted top's height that the scene measured there, as tabletop
+// segmentation finds supporting planes in the gravity frame (Rusu, Marton, Blodow, Beetz et al.,
+// "Close-range scene segmentation and reconstruction of 3D point cloud maps for mobile
+// manipulation in domestic environments", IROS 2009): the layer of measured points at that
+// height, closed over the holes of a sparse sample, opened to drop what is thin there (a chair's
+// backrest pushed to the table, a wall), grown from the fitted footprint, and boxed by the
+// tighter of the fitted heading and the layer's own main axis. Two hypotheses on one long top
+// then share its box and merge in suppression.h.
+#include "core/model/model.h"
+#include "core/recognition/hypothesis.h"
+#include "core/recognition/verification.h"
+
+namespace ism {
+
+struct TopExtentParams {
+  bool enabled = true;
+  // A training shape is flat-topped when at least this share of its surface points lie within
+  // `layer` of its top (a table's top holds most of its surface; a chair's or a couch's top, the
+  // rim of a backrest, little); a category is when most of its shapes are.
+  float min_top_share = 0.3f;
+  float layer = 0.03f;        // half the thickness of the layer at the top's height (m)
+  float cell = 0.05f;         // the layer's grid (m)
+  // The top is sought at the densest 2 cm of measured points over the fitted footprint, from
+  // this far below the fitted top to this far above it (m), where at least min_points lie.
+  float below = 0.2f, above = 0.1f;
+  int min_points = 10;
+  float max_side = 6.0f;
+  float min_area_share = 0.5f;  // a smaller top than this share of the fitted footprint is not taken      // the top is grown within a square of this side about the fitted box (m)
+};
+
+// Whether most of `category`'s training shapes are flat-topped (TopExtentParams::min_top_share).
+bool flatTopped(const CategoryModel& category, const TopExtentParams& params = {});
+
+// Replaces a verified, upright hypothesis' box by the extent of the scene's top surface there, from
+// the floor (or the box's bottom) to the top's height. Leaves it as it is where no top is found.
+void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params = {});
+
+}  // namespace ism

@@ -1,0 +1,131 @@
+// A table's box from the scene's table top: a long desk rendered with a chair pushed to it, and
+// a hypothesis whose fitted shape covers only one end of it.
+#include "core/recognition/top_extent.h"
+
+#include <cmath>
+#include <random>
+
+#include <gtest/gtest.h>
+
+#include "core/common/upright_box.h"
+#include "core/model/model_file.h"
+#include "core/scanner/scanner.h"
+#include "tests/common/synthetic_furniture.h"
+
+namespace ism {
+namespace {
+
+using testing::boxMesh;
+using testing::merge;
+
+constexpr float kTop = 0.75f;
+
+// A desk 2.4 m x 0.8 m on four legs, centred on the origin along x.
+Mesh desk() {
+  Mesh m = boxMesh({-1.2f, -0.4f, kTop - 0.03f}, {1.2f, 0.4f, kTop});
+  for (const float x : {-1.15f, 1.1f}) {
+    for (const float y : {-0.35f, 0.3f}) m = merge(m, boxMesh({x, y, 0}, {x + 0.05f, y + 0.05f, kTop - 0.03f}));
+  }
+  return m;
+}
+
+Gravity knownFloor() {
+  Gravity g;
+  g.up = Eigen::Vector3f::UnitZ();
+  g.source = UpSource::kGiven;
+  g.floor_level = 0.0f;
+  return g;
+}
+
+// The desk, a chair pushed to its far side with its backrest rising past the top's height, and a
+// low cabinet standing 0.3 m off its right end, seen from 3 m at a person's height.
+SyntheticScene office() {
+  const Mesh chair = testing::syntheticFurniture("dining_chair", 0);
+  std::vector<SceneObject> objects{{"dining_table", desk(), 0, 0, 0},
+                                   {"dining_chair", chair, 0.2f, 0.55f, 0},
+                                   {"", boxMesh({-0.3f, -0.3f, 0}, {0.3f, 0.3f, kTop}), 1.8f, 0, 0}};
+  SyntheticSceneParams params;
+  params.camera_eye = {0.3f, -3.0f, 1.6f};
+  params.camera_target = {0.0f, 0.0f, 0.5f};
+  params.floor_size = 8.0f;
+  return composeScene(objects, params);
+}
+
+// A verified hypothesis whose fitted table shape, 1.2 m x 0.8 m, stands on the desk's left end.
+Hypothesis leftEnd() {
+  UprightBox box;
+  box.size = {1.2f, 0.8f, 0.74f};
+  box.center = {-0.55f, 0.02f, box.size.z() / 2};
+  box.yaw = 0.05f;
+  Hypothesis h;
+  h.category = "dining_table";
+  h.box = box.toScene(Eigen::Matrix3f::Identity());
+  h.upright_box = true;
+  h.verification = Verification{};
+  return h;
+}
+
+TEST(TopExtent, TheBoxSpansTheWholeTopAndNothingBesideIt) {
+  const SyntheticScene rendered = office();
+  for (const bool sparse : {false, true}) {
+    Scene scene = rendered.scene;
+    if (sparse) {  // a room sample without its image grid, a tenth of the points
+      Scene sample = scene;
+      sample.cloud.reset(new Cloud);
+      std::mt19937 rng(3);
+      std::bernoulli_distribution keep(0.1);
+      for (const auto& p : scene.cloud->points) {
+        if (keep(rng)) sample.cloud->push_back(p);
+      }
+      sample.image_width = sample.image_height = 0;
+      scene = sample;
+    }
+    Hypothesis h = leftEnd();
+    extendToTop(makeVerificationScene(scene, knownFloor()), h);
+    const UprightBox box = uprightBoxOf(h.box, Eigen::Matrix3f::Identity());
+    // The 2.4 m top within a cell of the grid on each side; neither the chair behind it nor the
+    // cabinet of the same height 0.3 m off its end joins it.
+    EXPECT_NEAR(box.size.x(), 2.4f, 0.12f) << "sparse " << sparse;
+    EXPECT_NEAR(box.size.y(), 0.8f, 0.12f) << "sparse " << sparse;
+    EXPECT_NEAR(box.center.x(), 0.0f, 0.06f) << "sparse " << sparse;
+    EXPECT_NEAR(box.center.y(), 0.0f, 0.06f) << "sparse " << sparse;
+    EXPECT_NEAR(box.size.z(), kTop, 0.03f) << "from the floor to the top, sparse " << sparse;
+    EXPECT_NEAR(box.center.z(), kTop / 2, 0.02f);
+    EXPECT_NEAR(std::abs(std::remainder(box.yaw, static_cast<float>(M_PI))), 0.0f, 0.06f);
+  }
+}
+
+TEST(TopExtent, WithoutATopTheFittedShapeStays) {
+  Hypothesis h = leftEnd();
+  UprightBox box = uprightBoxOf(h.box, Eigen::Matrix3f::Identity());
+  box.center.x() = -2.6f;  // over bare floor, left of the desk
+  h.box = box.toScene(Eigen::Matrix3f::Identity());
+  const OrientedBox before = h.box;
+  extendToTop(makeVerificationScene(office().scene, knownFloor()), h);
+  EXPECT_TRUE(h.box.center.isApprox(before.center));
+  EXPECT_TRUE(h.box.size.isApprox(before.size));
+  // Nor is an unverified hypothesis touched, or any when it is turned off.
+  Hypothesis unverified = leftEnd();
+  unverified.verification.reset();
+  const OrientedBox fitted = unverified.box;
+  extendToTop(makeVerificationScene(office().scene, knownFloor()), unverified);
+  EXPECT_TRUE(unverified.box.size.isApprox(fitted.size));
+  Hypothesis off = leftEnd();
+  TopExtentParams params;
+  params.enabled = false;
+  extendToTop(makeVerificationScene(office().scene, knownFloor()), off, params);
+  EXPECT_TRUE(off.box.size.isApprox(fitted.size));
+}
+
+TEST(TopExtent, TablesAreFlatToppedChairsAndCouchesAreNot) {
+  // The shipped model's training shapes, as recognition reads them.
+  const Model model = loadModel(std::string(ISM_SOURCE_DIR) + "/models/default/furniture.ismm");
+  for (const auto& category : model.categories) {
+    EXPECT_EQ(flatTopped(category), category.name == "dining_table") << category.name;
+  }
+  CategoryModel none;
+  EXPECT_FALSE(flatTopped(none)) << "no shapes, nothing to say";
+}
+
+}  // namespace
+}  // namespace ism
