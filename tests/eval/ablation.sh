@@ -24,7 +24,8 @@ mkdir -p "$work"
 # seed's scales, rows before the calibration for clouds calibrate on frames alone.
 # Rows before the far training views see each mesh as near as it fits in view.
 # Rows before the surface keypoints take contours alone; rows before the height test's
-# normalisation spread a keypoint's weight over all of its codeword's votes.
+# normalisation spread a keypoint's weight over all of its codeword's votes; rows before the table
+# top keep their fitted shapes' boxes.
 contours="--surface-keypoints 0 --height-weighting lost"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
@@ -35,20 +36,21 @@ steps=(
   "planes|$old --cloud-keypoints boundary --vote-frame lrf --height-tolerance 0 --no-calibration|--preset seed|+ up and floor: floor and walls never keypoints, training meshes on a floor"
   "upright|$old --cloud-keypoints boundary --height-tolerance 0 --no-calibration|--preset seed|+ upright vote frames"
   "heights|$old --cloud-keypoints boundary --no-calibration|--preset seed|+ the height test: votes only from training keypoints at the keypoint's height"
-  "one-answer|$old --cloud-keypoints boundary --no-calibration|--preset default|+ upright boxes from the training objects, height prior, one answer per object"
-  "calibrated|$old --cloud-keypoints boundary|--preset default|+ confidence calibrated on rendered rooms"
-  "range-image|$old|--preset default|+ unorganized clouds: contours of the range image from the sensor"
-  "shadow|$fine|--preset default|+ the projector's shadow in training scans and calibration rooms"
-  "coarse|$near --no-cloud-calibration --no-verification|--preset default|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
-  "clouds|$near --no-verification|--preset default|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
-  "verified|$near|--preset default --centre-suppression --map-verification viewpoint|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
-  "surface|=verified|--preset default --map-verification viewpoint|+ one object across categories only where one explains the other's verified surface"
-  "far-views|$contours|--preset default --map-verification viewpoint|+ training views from 3.5 m rather than as near as the object fits in view"
-  "background|$contours --calibration-background 0|--preset default --map-verification viewpoint|+ codewords weighed against 21 background meshes (manifest rows of category background)"
-  "background-rooms|$contours|--preset default --map-verification viewpoint|+ up to 2 of the background meshes in each calibration room"
-  "maps|=background-rooms|--preset default|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
-  "surface-keypoints|--height-weighting lost|--preset default|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
-  "height-normalized||--preset default|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's (the default)"
+  "one-answer|$old --cloud-keypoints boundary --no-calibration|--preset default --no-top-extent|+ upright boxes from the training objects, height prior, one answer per object"
+  "calibrated|$old --cloud-keypoints boundary|--preset default --no-top-extent|+ confidence calibrated on rendered rooms"
+  "range-image|$old|--preset default --no-top-extent|+ unorganized clouds: contours of the range image from the sensor"
+  "shadow|$fine|--preset default --no-top-extent|+ the projector's shadow in training scans and calibration rooms"
+  "coarse|$near --no-cloud-calibration --no-verification|--preset default --no-top-extent|+ descriptors at 3 cm voxels, 7.5 cm normals, 18 cm SHOT instead of 1 / 3 / 8 cm"
+  "clouds|$near --no-verification|--preset default --no-top-extent|+ a second calibration for unorganized clouds, on the rooms seen as point samples"
+  "verified|$near|--preset default --centre-suppression --map-verification viewpoint --no-top-extent|+ verification: training shapes fitted to the measured depth, the fit in the confidence"
+  "surface|=verified|--preset default --map-verification viewpoint --no-top-extent|+ one object across categories only where one explains the other's verified surface"
+  "far-views|$contours|--preset default --map-verification viewpoint --no-top-extent|+ training views from 3.5 m rather than as near as the object fits in view"
+  "background|$contours --calibration-background 0|--preset default --map-verification viewpoint --no-top-extent|+ codewords weighed against 21 background meshes (manifest rows of category background)"
+  "background-rooms|$contours|--preset default --map-verification viewpoint --no-top-extent|+ up to 2 of the background meshes in each calibration room"
+  "maps|=background-rooms|--preset default --no-top-extent|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
+  "surface-keypoints|--height-weighting lost|--preset default --no-top-extent|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
+  "height-normalized||--preset default --no-top-extent|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's"
+  "table-top|=height-normalized|--preset default|+ tables' boxes spanning the scene's table top, not their fitted shape (the default)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
