@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <limits>
 #include <vector>
 
 #include <Eigen/Eigenvalues>
@@ -14,11 +15,10 @@ namespace {
 
 constexpr float kBin = 0.02f;  // the top's height is sought in layers this thick (m)
 
-// A square grid of top_points over the gravity frame's x and y, flags per cell.
+// A square grid of cells over the gravity frame's x and y, flags per cell.
 class Grid {
  public:
-  Grid(Eigen::Vector2f min, float cell, int n) : min_(min), cell_(cell), n_(n), flags_(static_cast<size_t>(n) * n, 0) {}
-  int n() const { return n_; }
+  Grid(Eigen::Vector2f min, float cell, int n) : min_(min), cell_(cell), n_(n), flags_(static_cast<size_t>(n) * static_cast<size_t>(n), 0) {}
   bool cellOf(const Eigen::Vector2f& p, int& x, int& y) const {
     const Eigen::Vector2f f = (p - min_) / cell_;
     if (!(f.x() >= 0 && f.y() >= 0)) return false;
@@ -139,12 +139,12 @@ void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const T
     measured.set(x, y);
     layer.push_back(p.head<2>());
   }
-  // Closed over a sample's holes, then opened: a part one or two top_points thin at this height (a
+  // Closed over a sample's holes, then opened: a part one or two cells thin at this height (a
   // backrest, a wall, a monitor's foot) does not join the top to what stands beside it.
   const Grid closed = measured.dilated().eroded();
   const Grid opened = closed.eroded().dilated() & closed;
 
-  // Grown from the top_points within the fitted footprint.
+  // Grown from the cells within the fitted footprint.
   Grid reached(centre.head<2>() - Eigen::Vector2f::Constant(half), params.cell, n);
   std::vector<std::pair<int, int>> frontier;
   for (int y = 0; y < n; ++y) {
@@ -170,7 +170,7 @@ void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const T
     }
   }
 
-  // The measured points of the top (not the top_points, which would add up to a cell on each side),
+  // The measured points of the top (not its cells, which would add up to a cell on each side),
   // boxed along the fitted heading or their own main axis, whichever is tighter.
   std::vector<Eigen::Vector2f> top_points;
   for (const auto& p : layer) {
