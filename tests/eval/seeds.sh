@@ -3,12 +3,14 @@
 # development scans move with the k-means start, the sensor noise and the calibration rooms (the
 # clouds' mAP by about +-1.5 points), which is as much as most single steps change them; each
 # variant is therefore trained with the same seeds and compared seed by seed with the first.
-#   tests/eval/seeds.sh BUILD_DIR OUTPUT.md "NAME|ISM-TRAIN OPTIONS|WHAT" ... [-- SEED...]
+#   tests/eval/seeds.sh BUILD_DIR OUTPUT.md "NAME|ISM-TRAIN OPTIONS|WHAT[|ISM-EVAL OPTIONS]" ... [-- SEED...]
 # Seeds default to 1 2 3 4. About 2 minutes per variant and seed on 2 cores. Models, ism-eval's
 # JSON and the training logs stay in BUILD_DIR/seeds/; with ISM_SEEDS_REUSE=1 a variant and seed
 # evaluated there before is not trained again. The option --background (not ism-train's) trains on
 # the manifest with the background meshes (models/default/background.tsv), as ablation.sh's row;
-# with ism-train's --manifest among the options, that manifest is trained on instead.
+# with ism-train's --manifest among the options, that manifest is trained on instead. A step of
+# recognition alone: ISM-TRAIN OPTIONS "=NAME" evaluates the models of the variant NAME (listed
+# before it) again, with its own ISM-EVAL OPTIONS.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/../.." && pwd)
 build=$(cd "$1" && pwd)
@@ -26,7 +28,7 @@ work=$build/seeds
 mkdir -p "$work"
 names=()
 for variant in "${variants[@]}"; do
-  IFS='|' read -r name train_args what <<< "$variant"
+  IFS='|' read -r name train_args what eval_args <<< "$variant"
   names+=("$name|$what")
   use=(--manifest "$manifest")
   if [[ " $train_args " == *" --manifest "* ]]; then
@@ -41,10 +43,16 @@ for variant in "${variants[@]}"; do
       echo "seeds: $name seed $seed kept" >&2
       continue
     fi
+    if [[ $train_args == =* ]]; then
+      model=$work/${train_args#=}.$seed.ismm
+      [[ -f $model ]] || { echo "seeds: $name needs $model (list ${train_args#=} before it)" >&2; exit 1; }
+    else
+      # shellcheck disable=SC2086
+      "$build/core/ism-train" "${use[@]}" -o "$model" --codebook global --no-scene-smoothing --seed "$seed" \
+        $train_args > "$work/$name.$seed.train.log"
+    fi
     # shellcheck disable=SC2086
-    "$build/core/ism-train" "${use[@]}" -o "$model" --codebook global --no-scene-smoothing --seed "$seed" \
-      $train_args > "$work/$name.$seed.train.log"
-    "$root/tests/eval/real_eval.sh" "$build" "$model" "$work/$name.$seed"
+    "$root/tests/eval/real_eval.sh" "$build" "$model" "$work/$name.$seed" $eval_args
     echo "seeds: $name seed $seed done" >&2
   done
 done
