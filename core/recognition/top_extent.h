@@ -30,8 +30,7 @@ struct TopExtentParams {
   // this far below the fitted top to this far above it (m), where at least min_points lie.
   float below = 0.2f, above = 0.1f;
   int min_points = 10;
-  float max_side = 6.0f;
-  float min_area_share = 0.5f;  // a smaller top than this share of the fitted footprint is not taken      // the top is grown within a square of this side about the fitted box (m)
+  float max_side = 6.0f;      // the top is grown within a square of this side about the fitted box (m)
 };
 
 // Whether most of `category`'s training shapes are flat-topped (TopExtentParams::min_top_share).
