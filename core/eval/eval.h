@@ -40,6 +40,7 @@ struct EvalRecognition {
   bool shared_surface = true;  // SuppressionParams::shared_surface
   bool maps_in_3d = true;      // VerificationParams::maps_in_3d
   bool top_extent = true;      // TopExtentParams::enabled
+  bool footprint_prior = true; // TopExtentParams::footprint_prior
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

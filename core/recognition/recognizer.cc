@@ -125,17 +125,22 @@ std::vector<std::vector<Activation>> activateCodewords(const Model& model, const
   return activations;
 }
 
+// How far outside what the category's training objects measured a hypothesis may be and still
+// pass a prior: the vote height test's tolerance and a bin.
+float priorSlack(const Model& model, const CategoryModel& category) {
+  return model.voting.height_tolerance + category.bin_size;
+}
+
 // Whether a peak's centre is at a height above the floor the category's training objects had
-// theirs, give or take the vote height test's tolerance and a bin.
-bool withinHeightPrior(const Hypothesis& peak, const CategoryModel& category, const Features& features,
-                       float tolerance) {
+// theirs, give or take the priors' slack.
+bool withinHeightPrior(const Hypothesis& peak, const CategoryModel& category, const Features& features, float slack) {
   if (!features.gravity || !features.gravity->hasFloor() || category.objects.empty()) return true;
   float lo = category.objects.front().center_height, hi = lo;
   for (const auto& o : category.objects) {
     lo = std::min(lo, o.center_height);
     hi = std::max(hi, o.center_height);
   }
-  const float h = features.gravity->height(peak.center), slack = tolerance + category.bin_size;
+  const float h = features.gravity->height(peak.center);
   return h >= lo - slack && h <= hi + slack;
 }
 
@@ -171,7 +176,7 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
       }
       if (plan.confidence[s].best(peak) < std::max(options.min_confidence, kLowestConfidence)) continue;
       estimateUprightBox(hough.caster(), category.bin_size / 2, peak);
-      peak.passed_selection = withinHeightPrior(peak, category, features, model.voting.height_tolerance);
+      peak.passed_selection = withinHeightPrior(peak, category, features, priorSlack(model, category));
       (peak.passed_selection ? all : result.rejected).push_back(std::move(peak));
     }
     peak_ms += elapsed_ms(start);
@@ -188,7 +193,9 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 
 // Default preset: each category's peaks merged to one per object, then verified against the
 // scene, and their confidences made again with the fit. A hypothesis whose agreeing surface is
-// mostly another's of its category (their boxes overlap too little to be merged) is dropped.
+// mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
+// table's box becomes its measured top, and one outside the footprint prior goes to
+// result.rejected.
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
@@ -203,12 +210,21 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     }
     if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity, options.suppression);
     verifyHypotheses(view, model, own, options.verification, options.should_stop);
-    const bool flat = options.top_extent.enabled && flatTopped(model.categories[static_cast<size_t>(plan.categories[s])], options.top_extent);
+    const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
+    const bool flat = options.top_extent.enabled && flatTopped(category, options.top_extent);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
       if (h.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
-      if (flat) extendToTop(view, h, options.top_extent);
+      if (flat) {
+        extendToTop(view, h, options.top_extent);
+        if (options.top_extent.footprint_prior &&
+            !withinFootprintPrior(h, category, to_gravity, priorSlack(model, category))) {
+          h.passed_selection = false;
+          result.rejected.push_back(std::move(h));
+          continue;
+        }
+      }
       verified.push_back(std::move(h));
     }
   }

@@ -56,7 +56,8 @@ struct RecognitionOptions {
   bool verify = true;
   VerificationParams verification;
   // Default preset, verified hypotheses of flat-topped categories (tables): the box spans the
-  // scene's top surface there rather than the fitted shape (top_extent.h).
+  // scene's top surface there rather than the fitted shape, and a top deeper or shallower than
+  // the training tables' is rejected (top_extent.h).
   TopExtentParams top_extent;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints

@@ -102,6 +102,18 @@ bool flatTopped(const CategoryModel& category, const TopExtentParams& params) {
   return shapes > 0 && 2 * flat > shapes;
 }
 
+bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
+                          float slack) {
+  if (category.objects.empty()) return true;
+  float lo = std::numeric_limits<float>::infinity(), hi = 0;
+  for (const auto& o : category.objects) {
+    lo = std::min(lo, o.size.head<2>().minCoeff());
+    hi = std::max(hi, o.size.head<2>().minCoeff());
+  }
+  const float narrow = uprightBoxOf(hypothesis.box, to_gravity).size.head<2>().minCoeff();
+  return narrow >= lo - slack && narrow <= hi + slack;
+}
+
 void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
   if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return;
   const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);

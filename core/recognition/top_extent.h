@@ -31,6 +31,9 @@ struct TopExtentParams {
   float below = 0.2f, above = 0.1f;
   int min_points = 10;
   float max_side = 6.0f;      // the top is grown within a square of this side about the fitted box (m)
+  // A top whose narrow side is outside the training shapes' narrow sides, give or take the priors'
+  // slack, is dropped (withinFootprintPrior).
+  bool footprint_prior = true;
 };
 
 // Whether most of `category`'s training shapes are flat-topped (TopExtentParams::min_top_share).
@@ -39,5 +42,13 @@ bool flatTopped(const CategoryModel& category, const TopExtentParams& params = {
 // Replaces a verified, upright hypothesis' box by the extent of the scene's top surface there, from
 // the floor (or the box's bottom) to the top's height. Leaves it as it is where no top is found.
 void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params = {});
+
+// The footprint prior of a flat-topped category: whether the narrow side of the hypothesis' upright
+// box (in the frame of `to_gravity`) lies within the narrow sides of the category's training
+// objects, give or take `slack` (m). The narrow side only: a table's depth is bounded by the reach
+// across it, and the beds that voting takes for tables are deeper than any table, while desks and
+// dining tables come in any length.
+bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
+                          float slack);
 
 }  // namespace ism

@@ -110,6 +110,10 @@ int main(int argc, char** argv) {
   real->add_flag("--no-top-extent", no_top_extent,
                  "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top "
                  "(top_extent.h)");
+  bool no_footprint_prior = false;
+  real->add_flag("--no-footprint-prior", no_footprint_prior,
+                 "default preset: keep tables whose measured top is deeper or shallower than every training table's "
+                 "(top_extent.h)");
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -149,7 +153,8 @@ int main(int argc, char** argv) {
     } else {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
-                            map_verification == "3d", !no_top_extent};
+                            map_verification == "3d", !no_top_extent,
+                            !no_footprint_prior};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

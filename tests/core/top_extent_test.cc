@@ -117,6 +117,31 @@ TEST(TopExtent, WithoutATopTheFittedShapeStays) {
   EXPECT_TRUE(off.box.size.isApprox(fitted.size));
 }
 
+TEST(TopExtent, TheFootprintPriorBoundsATopsDepthNotItsLength) {
+  CategoryModel tables;
+  for (const Eigen::Vector3f& size : {Eigen::Vector3f(1.1f, 0.7f, 0.75f), Eigen::Vector3f(1.24f, 1.24f, 0.74f)}) {
+    TrainingObject object;
+    object.size = size;
+    tables.objects.push_back(object);
+  }
+  const auto top = [](float x, float y, float yaw) {
+    UprightBox box;
+    box.size = {x, y, 0.75f};
+    box.center = {0.3f, -0.2f, 0.375f};
+    box.yaw = yaw;
+    Hypothesis h;
+    h.box = box.toScene(Eigen::Matrix3f::Identity());
+    return h;
+  };
+  const Eigen::Matrix3f up = Eigen::Matrix3f::Identity();
+  EXPECT_TRUE(withinFootprintPrior(top(1.6f, 0.8f, 0.3f), tables, up, 0.3f));
+  EXPECT_TRUE(withinFootprintPrior(top(5.6f, 1.5f, 1.2f), tables, up, 0.3f)) << "a long table";
+  EXPECT_TRUE(withinFootprintPrior(top(0.45f, 0.45f, 0.0f), tables, up, 0.3f)) << "0.7 m less the slack";
+  EXPECT_FALSE(withinFootprintPrior(top(2.2f, 1.6f, 0.0f), tables, up, 0.3f)) << "a double bed's top";
+  EXPECT_FALSE(withinFootprintPrior(top(1.6f, 0.35f, 0.0f), tables, up, 0.3f)) << "a shelf";
+  EXPECT_TRUE(withinFootprintPrior(top(1.6f, 0.8f, 0.0f), CategoryModel{}, up, 0.3f)) << "no objects, no prior";
+}
+
 TEST(TopExtent, TablesAreFlatToppedChairsAndCouchesAreNot) {
   // The shipped model's training shapes, as recognition reads them.
   const Model model = loadModel(std::string(ISM_SOURCE_DIR) + "/models/default/furniture.ismm");
