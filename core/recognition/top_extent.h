@@ -1,8 +1,8 @@
 #pragma once
 // A table's box from the scene's own table top. Tables and desks come in every length, and a
-// training shape's box covers only as much as that shape: a 2.4 m desk was answered as two
-// 1.2 m tables, and a 5.6 m dining table as one 1.1 m table at its near end, neither overlapping
-// the real top by a quarter. A category whose training shapes are flat-topped (most of their
+// training shape's box covers only as much as that shape: with it a 2.4 m desk is two 1.2 m
+// tables, and a 5.6 m dining table one 1.1 m table at its near end, neither overlapping the real
+// top by a quarter. A category whose training shapes are flat-topped (most of their
 // surface at their top: tables, desks) has its verified hypotheses' boxes taken from the
 // horizontal surface at the fitted top's height that the scene measured there, as tabletop
 // segmentation finds supporting planes in the gravity frame (Rusu, Marton, Blodow, Beetz et al.,
