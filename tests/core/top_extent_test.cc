@@ -10,10 +10,13 @@
 #include "core/common/upright_box.h"
 #include "core/model/model_file.h"
 #include "core/scanner/scanner.h"
+#include "tests/common/known_gravity.h"
 #include "tests/common/synthetic_furniture.h"
 
 namespace ism {
 namespace {
+
+using testing::knownFloor;
 
 using testing::boxMesh;
 using testing::merge;
@@ -27,14 +30,6 @@ Mesh desk() {
     for (const float y : {-0.35f, 0.3f}) m = merge(m, boxMesh({x, y, 0}, {x + 0.05f, y + 0.05f, kTop - 0.03f}));
   }
   return m;
-}
-
-Gravity knownFloor() {
-  Gravity g;
-  g.up = Eigen::Vector3f::UnitZ();
-  g.source = UpSource::kGiven;
-  g.floor_level = 0.0f;
-  return g;
 }
 
 // The desk, a chair pushed to its far side with its backrest rising past the top's height, and a

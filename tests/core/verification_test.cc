@@ -8,10 +8,13 @@
 
 #include "core/common/upright_box.h"
 #include "core/scanner/scanner.h"
+#include "tests/common/known_gravity.h"
 #include "tests/common/synthetic_furniture.h"
 
 namespace ism {
 namespace {
+
+using testing::knownFloor;
 
 constexpr float kChairX = 0.3f, kChairY = 0.4f, kChairYaw = 0.7f;
 
@@ -55,14 +58,6 @@ Hypothesis chairAt(const Room& room, float x, float y, float yaw) {
   h.box = box.toScene(Eigen::Matrix3f::Identity());
   h.center = box.center;
   return h;
-}
-
-Gravity knownFloor() {
-  Gravity g;
-  g.up = Eigen::Vector3f::UnitZ();
-  g.source = UpSource::kGiven;
-  g.floor_level = 0.0f;
-  return g;
 }
 
 TEST(Verification, TheChairsOwnShapeFitsWhereItStands) {
