@@ -16,9 +16,8 @@
 namespace ism {
 namespace {
 
-using testing::knownFloor;
-
 using testing::boxMesh;
+using testing::knownFloor;
 using testing::merge;
 
 constexpr float kTop = 0.75f;
