@@ -10,6 +10,7 @@
 
 #include "core/common/upright_box.h"
 #include "core/gravity/viewpoint.h"
+#include "core/recognition/top_extent.h"
 
 namespace ism {
 namespace {
@@ -149,12 +150,46 @@ Agreement agreementInMap(const VerificationScene& scene, float floor_z, const st
   return a;
 }
 
+// A training shape's surface as cubes of its own frame (box centred on x = y = 0, standing on
+// z = 0), and its box: what lies in the box away from the surface is the shape's free space.
+class ShapeSpace {
+ public:
+  explicit ShapeSpace(const TrainingObject& object) : size_(object.size) {
+    for (const auto& p : object.surface) cells_.insert(cellOf(p, kCell));
+  }
+  // Whether `local` (the shape's frame) lies in the box, off the floor, and no cube of its
+  // surface is within one cube of it (4-12 cm).
+  bool free(const Eigen::Vector3f& local) const {
+    if (std::abs(local.x()) > size_.x() / 2 || std::abs(local.y()) > size_.y() / 2 || local.z() < kOffFloor ||
+        local.z() > size_.z()) {
+      return false;
+    }
+    const Eigen::Vector3i c = (local / kCell).array().floor().cast<int>();
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const Eigen::Vector3f middle = ((c + Eigen::Vector3i(dx, dy, dz)).cast<float>().array() + 0.5f) * kCell;
+          if (cells_.count(cellOf(middle, kCell)) > 0) return false;
+        }
+      }
+    }
+    return true;
+  }
+
+ private:
+  static constexpr float kCell = 0.04f;
+  static constexpr float kOffFloor = 0.08f;  // the floor's points, at the margin of its fit
+  Eigen::Vector3f size_;
+  std::unordered_set<uint64_t> cells_;
+};
+
 struct ShapeView {
   const LocalView& view;
   float floor_z = 0;
   float margin = 0;
   const std::unordered_set<uint64_t>* claimed = nullptr;  // explained by a better hypothesis
   float cell = 0.04f;
+  const std::vector<ShapeSpace>* spaces = nullptr;  // per training object; none: occluders excused
 };
 
 // A z-buffer of the shape's points over a LocalView's pixels, kept between poses: only the
@@ -201,7 +236,14 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     buffer.index[static_cast<size_t>(pixel)] = -1;
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];
     const float m = depthMargin(z, sv.margin);
-    if (!std::isfinite(measured) || measured < z - m) continue;  // no measurement, or something in front
+    if (!std::isfinite(measured)) continue;
+    if (measured < z - m) {  // something in front: an occluder, unless it stands in the shape's free space
+      if (sv.spaces != nullptr) {
+        const Eigen::Vector3f front = (turn * shape[static_cast<size_t>(index)] + offset) * (measured / z);
+        if ((*sv.spaces)[static_cast<size_t>(pose.object)].free(turn.transpose() * (front - offset))) ++a.seen;
+      }
+      continue;
+    }
     if (measured > z + m) {  // seen through
       ++a.seen;
       continue;
@@ -314,7 +356,11 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   if (!view) return std::nullopt;
 
   ShapeBuffer scratch(view->depth.size());
-  const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f};
+  std::vector<ShapeSpace> spaces;
+  if (params.free_space && !scene.map && !flatTopped(category)) {
+    for (const auto& o : category.objects) spaces.emplace_back(o);
+  }
+  const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f, spaces.empty() ? nullptr : &spaces};
   std::vector<std::pair<float, Pose>> coarse;
   for (size_t o = 0; o < category.objects.size(); ++o) {
     if (category.objects[o].surface.empty()) continue;  // a shape calibration holds out

@@ -16,6 +16,7 @@
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
 #include "core/recognition/box_selection.h"
+#include "core/recognition/top_extent.h"
 #include "core/training/background.h"
 #include "core/training/calibration.h"
 #include "core/training/leave_one_out.h"
@@ -430,6 +431,24 @@ void keepShapes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>
     category->objects[index].surface = sampleSurface(placed[i], params.shape_spacing,
                                                      static_cast<size_t>(std::max(0, params.shape_points)),
                                                      static_cast<uint32_t>(i + 1));
+  }
+  if (!params.visible_shapes) return;
+  std::vector<bool> flat;
+  for (const auto& c : model.categories) flat.push_back(flatTopped(c));
+  for (size_t i = 0; i < meshes.size(); ++i) {
+    auto category = std::find_if(model.categories.begin(), model.categories.end(),
+                                 [&](const CategoryModel& c) { return c.name == meshes[i].category; });
+    if (category == model.categories.end() || flat[static_cast<size_t>(category - model.categories.begin())]) continue;
+    const auto index = static_cast<size_t>(model_index[i]);
+    if (index >= category->objects.size()) continue;
+    // Four times the points drawn, so that about as many as before are left once the hidden are
+    // gone; the draw is in random order, so the first shape_points visible are an even sample.
+    const size_t keep = static_cast<size_t>(std::max(0, params.shape_points));
+    std::vector<Eigen::Vector3f> visible =
+        visibleFrom(sampleSurface(placed[i], params.shape_spacing, 4 * keep, static_cast<uint32_t>(i + 1)), placed[i],
+                    viewRing(placed[i], params.views), params.intrinsics);
+    if (visible.size() > keep) visible.resize(keep);
+    category->objects[index].surface = std::move(visible);
   }
 }
 
