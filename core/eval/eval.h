@@ -41,7 +41,6 @@ struct EvalRecognition {
   bool maps_in_3d = true;      // VerificationParams::maps_in_3d
   bool top_extent = true;      // TopExtentParams::enabled
   bool footprint_prior = true; // TopExtentParams::footprint_prior
-  bool free_space = true;      // VerificationParams::free_space
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

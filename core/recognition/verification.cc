@@ -10,7 +10,6 @@
 
 #include "core/common/upright_box.h"
 #include "core/gravity/viewpoint.h"
-#include "core/recognition/top_extent.h"
 
 namespace ism {
 namespace {
@@ -150,60 +149,12 @@ Agreement agreementInMap(const VerificationScene& scene, float floor_z, const st
   return a;
 }
 
-// A training shape's surface as cubes of its own frame (box centred on x = y = 0, standing on
-// z = 0), and its box: what lies in the box away from the surface is the shape's free space.
-// The cubes within one of a surface point's are marked on a dense grid over the box, so that a
-// look-up is one index: verification asks for every occluded pixel of every pose.
-class ShapeSpace {
- public:
-  explicit ShapeSpace(const TrainingObject& object) : size_(object.size) {
-    const Eigen::Vector3f low(-size_.x() / 2, -size_.y() / 2, 0), high(size_.x() / 2, size_.y() / 2, size_.z());
-    first_ = cubeOf(low) - Eigen::Vector3i::Ones();
-    dims_ = cubeOf(high) - first_ + Eigen::Vector3i::Constant(2);
-    near_.assign(static_cast<size_t>(dims_.prod()), 0);
-    for (const auto& p : object.surface) {
-      const Eigen::Vector3i c = cubeOf(p) - first_;
-      for (int dx = -1; dx <= 1; ++dx) {
-        for (int dy = -1; dy <= 1; ++dy) {
-          for (int dz = -1; dz <= 1; ++dz) {
-            const Eigen::Vector3i q = c + Eigen::Vector3i(dx, dy, dz);
-            if ((q.array() >= 0).all() && (q.array() < dims_.array()).all()) near_[index(q)] = 1;
-          }
-        }
-      }
-    }
-  }
-  // Whether `local` (the shape's frame) lies in the box, off the floor, and no cube of the
-  // surface is within one cube of its own (4-12 cm).
-  bool free(const Eigen::Vector3f& local) const {
-    if (std::abs(local.x()) > size_.x() / 2 || std::abs(local.y()) > size_.y() / 2 || local.z() < kOffFloor ||
-        local.z() > size_.z()) {
-      return false;
-    }
-    const Eigen::Vector3i q = cubeOf(local) - first_;
-    return (q.array() >= 0).all() && (q.array() < dims_.array()).all() && near_[index(q)] == 0;
-  }
-
- private:
-  static constexpr float kCell = 0.04f;
-  static constexpr float kOffFloor = 0.08f;  // the floor's points, at the margin of its fit
-  static Eigen::Vector3i cubeOf(const Eigen::Vector3f& p) { return (p / kCell).array().floor().cast<int>(); }
-  size_t index(const Eigen::Vector3i& q) const {
-    return (static_cast<size_t>(q.z()) * static_cast<size_t>(dims_.y()) + static_cast<size_t>(q.y())) *
-               static_cast<size_t>(dims_.x()) + static_cast<size_t>(q.x());
-  }
-  Eigen::Vector3f size_;
-  Eigen::Vector3i first_ = Eigen::Vector3i::Zero(), dims_ = Eigen::Vector3i::Zero();
-  std::vector<uint8_t> near_;  // per cube of the grid: within one cube of a surface point's
-};
-
 struct ShapeView {
   const LocalView& view;
   float floor_z = 0;
   float margin = 0;
   const std::unordered_set<uint64_t>* claimed = nullptr;  // explained by a better hypothesis
   float cell = 0.04f;
-  const std::vector<ShapeSpace>* spaces = nullptr;  // per training object; none: occluders excused
 };
 
 // A z-buffer of the shape's points over a LocalView's pixels, kept between poses: only the
@@ -250,14 +201,7 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     buffer.index[static_cast<size_t>(pixel)] = -1;
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];
     const float m = depthMargin(z, sv.margin);
-    if (!std::isfinite(measured)) continue;
-    if (measured < z - m) {  // something in front: an occluder, unless it stands in the shape's free space
-      if (sv.spaces != nullptr) {
-        const Eigen::Vector3f front = (turn * shape[static_cast<size_t>(index)] + offset) * (measured / z);
-        if ((*sv.spaces)[static_cast<size_t>(pose.object)].free(turn.transpose() * (front - offset))) ++a.seen;
-      }
-      continue;
-    }
+    if (!std::isfinite(measured) || measured < z - m) continue;  // no measurement, or something in front
     if (measured > z + m) {  // seen through
       ++a.seen;
       continue;
@@ -348,24 +292,9 @@ bool hasShapes(const CategoryModel& category) {
   return std::any_of(category.objects.begin(), category.objects.end(), [](const TrainingObject& o) { return !o.surface.empty(); });
 }
 
-namespace {
-
-// The shapes' free space where the term applies (VerificationParams::free_space), else nothing:
-// made once per category and frame, not per hypothesis.
-std::vector<ShapeSpace> shapeSpaces(const VerificationScene& scene, const CategoryModel& category,
-                                    const VerificationParams& params) {
-  std::vector<ShapeSpace> spaces;
-  if (params.free_space && !scene.map && !flatTopped(category)) {
-    for (const auto& o : category.objects) spaces.emplace_back(o);
-  }
-  return spaces;
-}
-
-std::optional<Verification> verifyWith(const VerificationScene& scene, const CategoryModel& category,
-                                       const Hypothesis& hypothesis, const VerificationParams& params,
-                                       const std::vector<ShapeSpace>& spaces,
-                                       const std::unordered_set<uint64_t>* claimed,
-                                       std::unordered_set<uint64_t>* explained) {
+std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
+                                   const Hypothesis& hypothesis, const VerificationParams& params,
+                                   const std::unordered_set<uint64_t>* claimed, std::unordered_set<uint64_t>* explained) {
   if (!hasShapes(category)) return std::nullopt;
   const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
   const Eigen::Vector3f center = box.center - scene.to_gravity * scene.origin;
@@ -385,7 +314,7 @@ std::optional<Verification> verifyWith(const VerificationScene& scene, const Cat
   if (!view) return std::nullopt;
 
   ShapeBuffer scratch(view->depth.size());
-  const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f, spaces.empty() ? nullptr : &spaces};
+  const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f};
   std::vector<std::pair<float, Pose>> coarse;
   for (size_t o = 0; o < category.objects.size(); ++o) {
     if (category.objects[o].surface.empty()) continue;  // a shape calibration holds out
@@ -437,31 +366,19 @@ std::optional<Verification> verifyWith(const VerificationScene& scene, const Cat
   return best;
 }
 
-}  // namespace
-
-std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
-                                   const Hypothesis& hypothesis, const VerificationParams& params,
-                                   const std::unordered_set<uint64_t>* claimed, std::unordered_set<uint64_t>* explained) {
-  if (!hasShapes(category)) return std::nullopt;
-  return verifyWith(scene, category, hypothesis, params, shapeSpaces(scene, category, params), claimed, explained);
-}
-
 void verifyHypotheses(const VerificationScene& scene, const Model& model, std::vector<Hypothesis>& hypotheses,
                       const VerificationParams& params, const ShouldStop& should_stop) {
   // Most confident first; per category, the surface each has explained.
   std::stable_sort(hypotheses.begin(), hypotheses.end(),
                    [](const Hypothesis& a, const Hypothesis& b) { return a.confidence > b.confidence; });
   std::map<std::string, std::unordered_set<uint64_t>> explained;
-  std::map<std::string, std::vector<ShapeSpace>> spaces;
   for (auto& h : hypotheses) {
     throwIfStopped(should_stop, "verification");
     const CategoryModel* category = model.find(h.category);
     if (category == nullptr || !hasShapes(*category)) continue;
     std::unordered_set<uint64_t>& own = explained[h.category];
     std::unordered_set<uint64_t> mine;
-    auto space = spaces.find(h.category);
-    if (space == spaces.end()) space = spaces.emplace(h.category, shapeSpaces(scene, *category, params)).first;
-    h.verification = verifyWith(scene, *category, h, params, space->second, &own, &mine);
+    h.verification = verify(scene, *category, h, params, &own, &mine);
     own.insert(mine.begin(), mine.end());
     if (!h.verification) continue;
     h.verification->explained.assign(mine.begin(), mine.end());

@@ -50,14 +50,6 @@ struct VerificationParams {
   // surface the map does hold: on the dev ScanNet rooms the depth test's fit was higher on false
   // chairs than on true ones. false: every scene on a depth buffer from its viewpoint.
   bool maps_in_3d = true;
-  // On a depth buffer, measured surface in front of the shape excuses it as an occluder, except
-  // where that surface stands in the shape's free space: inside its box, more than a cube of
-  // ShapeSpace from its surface. Something there is where the shape says nothing is (a couch
-  // fitted to a counter's front has the counter inside its seat), so it counts against the fit,
-  // as the free-space term of Aldoma et al. does. Flat-topped categories (top_extent.h) keep the
-  // excuse: what stands under a table's top (a chair pushed under it) is where tables leave room.
-  // false: every occluder excused.
-  bool free_space = true;
 };
 
 // Which cubes of a grid lie within one cube of a measured point: one bit per cube over the

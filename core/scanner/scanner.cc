@@ -295,33 +295,6 @@ DepthImage renderDepth(const std::vector<const Mesh*>& meshes, const Eigen::Isom
   return render(meshes, camera_to_world, intrinsics, noise, nullptr);
 }
 
-std::vector<Eigen::Vector3f> visibleFrom(const std::vector<Eigen::Vector3f>& points, const Mesh& mesh,
-                                         const std::vector<Eigen::Isometry3f>& cameras,
-                                         const CameraIntrinsics& intrinsics, float tolerance) {
-  NoiseParams exact;
-  exact.enabled = false;
-  exact.projector_shadow = false;
-  std::vector<DepthImage> images;
-  images.reserve(cameras.size());
-  for (const auto& camera : cameras) images.push_back(renderDepth({&mesh}, camera, intrinsics, exact));
-  const auto seen = [&](const DepthImage& image, const Eigen::Vector3f& p) {
-    const Eigen::Vector3f q = image.camera_to_world.inverse() * p;
-    if (!(q.z() > 0)) return false;
-    const long u = std::lround(intrinsics.fx * q.x() / q.z() + intrinsics.cx);
-    const long v = std::lround(intrinsics.fy * q.y() / q.z() + intrinsics.cy);
-    if (u < 0 || v < 0 || u >= intrinsics.width || v >= intrinsics.height) return false;
-    const float depth = image.depth[static_cast<size_t>(v * intrinsics.width + u)];
-    return depth > 0 && q.z() <= depth + tolerance;
-  };
-  std::vector<Eigen::Vector3f> out;
-  for (const auto& p : points) {
-    if (std::any_of(images.begin(), images.end(), [&](const DepthImage& image) { return seen(image, p); })) {
-      out.push_back(p);
-    }
-  }
-  return out;
-}
-
 Scene depthImageToWorldScene(const DepthImage& image, const std::string& source) {
   const CameraIntrinsics& k = image.intrinsics;
   checkIntrinsics(k);

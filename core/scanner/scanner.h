@@ -69,12 +69,6 @@ std::vector<Eigen::Isometry3f> viewRing(const Mesh& placed_mesh, const ViewRingP
 DepthImage renderDepth(const std::vector<const Mesh*>& meshes, const Eigen::Isometry3f& camera_to_world,
                        const CameraIntrinsics& intrinsics, const NoiseParams& noise);
 
-// The points of `points` (on `mesh`'s surface, world frame) that a camera at one of `cameras`
-// sees: not behind the mesh's exact depth there by more than `tolerance`. Order is kept.
-std::vector<Eigen::Vector3f> visibleFrom(const std::vector<Eigen::Vector3f>& points, const Mesh& mesh,
-                                         const std::vector<Eigen::Isometry3f>& cameras,
-                                         const CameraIntrinsics& intrinsics, float tolerance = 0.02f);
-
 // Depth image -> scene in world coordinates, organized, sensor origin = camera position.
 Scene depthImageToWorldScene(const DepthImage& image, const std::string& source);
 // Depth in metres -> 16-bit PNG (units per metre as given), for the sample scene and tests.

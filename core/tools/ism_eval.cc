@@ -114,10 +114,6 @@ int main(int argc, char** argv) {
   real->add_flag("--no-footprint-prior", no_footprint_prior,
                  "default preset: keep tables whose measured top is deeper or shallower than every training table's "
                  "(top_extent.h)");
-  bool occluders_excused = false;
-  real->add_flag("--occluders-excused", occluders_excused,
-                 "default preset: measured surface in front of a fitted shape never counts against it, also where "
-                 "it stands in the shape's free space (verification.h)");
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -158,7 +154,7 @@ int main(int argc, char** argv) {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent,
-                            !no_footprint_prior, !occluders_excused};
+                            !no_footprint_prior};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

@@ -91,13 +91,6 @@ int main(int argc, char** argv) {
                "calibrate on the rendered frames only, not also on them as unorganized point samples");
   app.add_flag("--no-verification", no_shapes,
                "keep no training shapes, so that recognition does not verify hypotheses against the scene's depth");
-  bool whole_shapes = false;
-  app.add_flag("--whole-shapes", whole_shapes,
-               "keep all of each training shape's surface for verification, also what no training view sees "
-               "(by default only flat-topped categories keep it)");
-  bool occluders_excused = false;
-  app.add_flag("--occluders-excused", occluders_excused,
-               "calibrate with occluders always excused by verification, for ism-eval --occluders-excused");
   app.add_flag("--no-projector-shadow", no_shadow,
                "render training scans and calibration rooms without the structured-light projector's shadow");
   app.add_option("--pixel-shift", params.noise.pixel_shift,
@@ -157,8 +150,6 @@ int main(int argc, char** argv) {
   if (no_calibration) params.calibration.enabled = false;
   if (no_cloud_calibration) params.calibration.clouds = false;
   if (no_shapes) params.shape_spacing = 0;
-  if (whole_shapes) params.visible_shapes = false;
-  if (occluders_excused) params.calibration.free_space = false;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
     std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";

@@ -146,8 +146,7 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
 // positive, every other peak that is not another peak of that object a negative.
 void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
-                const VerificationScene& view, const VerificationParams& verification, bool cloud,
-                std::vector<CalibrationSample>& out) {
+                const VerificationScene& view, bool cloud, std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -155,7 +154,7 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
       if (p.category == name) own.push_back(p);
     }
     own = suppressOverlaps(std::move(own), to_gravity);  // one per object, as recognition keeps
-    verifyHypotheses(view, model, own, verification);
+    verifyHypotheses(view, model, own);
     own.erase(std::remove_if(own.begin(), own.end(),
                              [](const Hypothesis& h) { return h.verification && h.verification->duplicate(); }),
               own.end());
@@ -244,9 +243,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
           category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
           auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
           const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-          VerificationParams verification;
-          verification.free_space = cp.free_space;
-          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, verification, cloud, found);
+          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, found);
         }
       };
       look(room.scene.scene, false);

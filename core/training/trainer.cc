@@ -16,7 +16,6 @@
 #include "core/common/error.h"
 #include "core/frontend/frontend.h"
 #include "core/recognition/box_selection.h"
-#include "core/recognition/top_extent.h"
 #include "core/training/background.h"
 #include "core/training/calibration.h"
 #include "core/training/leave_one_out.h"
@@ -432,26 +431,6 @@ void keepShapes(const std::vector<TrainingMesh>& meshes, const std::vector<Mesh>
                                                      static_cast<size_t>(std::max(0, params.shape_points)),
                                                      static_cast<uint32_t>(i + 1));
   }
-  if (!params.visible_shapes) return;
-  std::vector<bool> flat;
-  for (const auto& c : model.categories) flat.push_back(flatTopped(c));
-  // Each mesh is rendered from its 12 views: one mesh per thread.
-  parallelFor(static_cast<int>(meshes.size()), threadCount(params), [&](int m) {
-    const auto i = static_cast<size_t>(m);
-    auto category = std::find_if(model.categories.begin(), model.categories.end(),
-                                 [&](const CategoryModel& c) { return c.name == meshes[i].category; });
-    if (category == model.categories.end() || flat[static_cast<size_t>(category - model.categories.begin())]) return;
-    const auto index = static_cast<size_t>(model_index[i]);
-    if (index >= category->objects.size()) return;
-    // Four times the points drawn, so that about as many as before are left once the hidden are
-    // gone; the draw is in random order, so the first shape_points visible are an even sample.
-    const size_t keep = static_cast<size_t>(std::max(0, params.shape_points));
-    std::vector<Eigen::Vector3f> visible =
-        visibleFrom(sampleSurface(placed[i], params.shape_spacing, 4 * keep, static_cast<uint32_t>(i + 1)), placed[i],
-                    viewRing(placed[i], params.views), params.intrinsics);
-    if (visible.size() > keep) visible.resize(keep);
-    category->objects[index].surface = std::move(visible);  // one object per mesh: no two threads share it
-  });
 }
 
 }  // namespace

@@ -32,9 +32,6 @@ struct CalibrationParams {
   // Peaks are collected down to this fraction of each category's leave-one-out threshold.
   float lowest_score_fraction = 0.02f;
   uint32_t seed = 7;
-  // The rooms' peaks are verified as recognition verifies (VerificationParams::free_space); false
-  // for a model used with occluders always excused (ism-train and ism-eval --occluders-excused).
-  bool free_space = true;
 };
 
 // The project's front end, coarser than the seed's (1 cm voxels, 3 cm normals, 8 cm SHOT): the
@@ -67,12 +64,6 @@ struct TrainingParams {
   // (ism-train --no-verification): docs/EVALUATION.md measures both.
   float shape_spacing = 0.02f;
   int shape_points = 1500;
-  // Of a category that is not flat-topped (top_extent.h), only the surface the training views see
-  // (ism-train --whole-shapes keeps all): a map cannot hold the underside of a seat or the inside
-  // of an upholstered frame, and on maps every shape point counts, so hidden surface only dilutes
-  // the fit. Tables keep theirs: without it they fitted worse on every draw of training
-  // (docs/EVALUATION.md).
-  bool visible_shapes = true;
   CalibrationParams calibration;  // the seed's models have none
   // 12 views, as in the seed, but from 3.5 m or farther rather than as near as the object fits
   // in view (1.6 m for a chair): robots see furniture from across a room, where a Kinect's

@@ -83,49 +83,6 @@ TEST(Verification, ShapesWhereTheSensorSeesTheWallAreSeenThrough) {
   EXPECT_GT(fit->seen, 50);
 }
 
-// The chair's hypothesis at x, y with a cabinet standing from `front` to `back` (y) across it,
-// verified at its own pose only, with and without the free-space term.
-std::pair<Verification, Verification> chairWithCabinet(float front, float back) {
-  const Room room = chairBeforeWall();
-  const float x = -1.2f, y = 0.3f;
-  std::vector<SceneObject> objects{{"", testing::boxMesh({-3, 2.0f, 0}, {3, 2.1f, 2.5f}), 0, 0, 0},
-                                   {"", testing::boxMesh({x - 0.4f, front, 0}, {x + 0.4f, back, 1.2f}), 0, 0, 0}};
-  SyntheticSceneParams params;
-  params.camera_eye = {0.0f, -2.6f, 1.4f};
-  params.camera_target = {0.2f, 0.4f, 0.4f};
-  params.floor_size = 8.0f;
-  const SyntheticScene rendered = composeScene(objects, params);
-  const VerificationScene scene = makeVerificationScene(rendered.scene, knownFloor());
-  VerificationParams strict;
-  strict.coarse_yaws = 1;
-  strict.coarse_steps = 0;
-  strict.refined_poses = 1;
-  strict.fine_yaw = 0;
-  strict.fine_shift = 0;
-  VerificationParams excused = strict;
-  excused.free_space = false;
-  CategoryModel chair = room.chairs;
-  chair.objects.erase(chair.objects.begin());  // the chair's own shape alone
-  const Hypothesis h = chairAt(room, x, y, 0.0f);
-  const auto a = verify(scene, chair, h, strict), b = verify(scene, chair, h, excused);
-  EXPECT_TRUE(a.has_value() && b.has_value());
-  return {a.value_or(Verification{}), b.value_or(Verification{})};
-}
-
-TEST(Verification, SurfaceInTheShapesFreeSpaceIsNoOccluder) {
-  // A cabinet's front through the middle of the chair's box hides its seat and back from the
-  // sensor, but stands where the chair has nothing: it refutes the shape rather than hide it.
-  const auto [strict, excused] = chairWithCabinet(0.3f, 0.9f);
-  EXPECT_EQ(strict.consistent, excused.consistent);
-  EXPECT_GT(strict.seen, excused.seen + 30) << "against " << excused.seen;
-  EXPECT_LT(strict.fit(), excused.fit() - 0.1f) << strict.consistent << " of " << strict.seen << " against "
-                                                << excused.consistent << " of " << excused.seen;
-  // Standing wholly before the box, the same cabinet is an occluder either way.
-  const auto [before, before_excused] = chairWithCabinet(-0.6f, -0.1f);
-  EXPECT_EQ(before.seen, before_excused.seen);
-  EXPECT_EQ(before.consistent, before_excused.consistent);
-}
-
 TEST(Verification, ThePartsAChairHidesSayNothing) {
   // A chair standing right behind the real one, from the sensor: most of it is hidden, so it is
   // neither confirmed nor refuted by what is hidden.
