@@ -2,6 +2,7 @@
 // A trained set of Implicit Shape Models: the front end it was trained with, the codebook(s),
 // per category the votes stored under each codeword, detection thresholds and box statistics.
 // Saved as the versioned Protobuf format of proto/ism/v1/model.proto (model_file.h).
+#include <algorithm>
 #include <map>
 #include <optional>
 #include <string>
@@ -156,6 +157,20 @@ struct CategoryModel {
   // model has one: clouds reach lower scores than depth frames of the same furniture.
   std::optional<Calibration> cloud_calibration;
 };
+
+// Whether `value` lies within the range `of_object` takes over the category's training objects,
+// give or take `slack`: recognition's priors from the training meshes. True without objects
+// (a model written before they were kept has nothing to bound it by).
+template <typename OfObject>
+bool withinTrainingRange(const CategoryModel& category, OfObject of_object, float value, float slack) {
+  if (category.objects.empty()) return true;
+  float lo = of_object(category.objects.front()), hi = lo;
+  for (const auto& o : category.objects) {
+    lo = std::min(lo, of_object(o));
+    hi = std::max(hi, of_object(o));
+  }
+  return value >= lo - slack && value <= hi + slack;
+}
 
 struct Provenance {
   std::vector<std::string> meshes;  // "category<TAB>path<TAB>credit"

@@ -134,14 +134,9 @@ float priorSlack(const Model& model, const CategoryModel& category) {
 // Whether a peak's centre is at a height above the floor the category's training objects had
 // theirs, give or take the priors' slack.
 bool withinHeightPrior(const Hypothesis& peak, const CategoryModel& category, const Features& features, float slack) {
-  if (!features.gravity || !features.gravity->hasFloor() || category.objects.empty()) return true;
-  float lo = category.objects.front().center_height, hi = lo;
-  for (const auto& o : category.objects) {
-    lo = std::min(lo, o.center_height);
-    hi = std::max(hi, o.center_height);
-  }
-  const float h = features.gravity->height(peak.center);
-  return h >= lo - slack && h <= hi + slack;
+  if (!features.gravity || !features.gravity->hasFloor()) return true;
+  return withinTrainingRange(category, [](const TrainingObject& o) { return o.center_height; },
+                             features.gravity->height(peak.center), slack);
 }
 
 // Every planned category's peaks, one category's Hough space at a time: it is the bulk of the

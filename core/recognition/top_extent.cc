@@ -104,14 +104,9 @@ bool flatTopped(const CategoryModel& category, const TopExtentParams& params) {
 
 bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
                           float slack) {
-  if (category.objects.empty()) return true;
-  float lo = std::numeric_limits<float>::infinity(), hi = 0;
-  for (const auto& o : category.objects) {
-    lo = std::min(lo, o.size.head<2>().minCoeff());
-    hi = std::max(hi, o.size.head<2>().minCoeff());
-  }
-  const float narrow = uprightBoxOf(hypothesis.box, to_gravity).size.head<2>().minCoeff();
-  return narrow >= lo - slack && narrow <= hi + slack;
+  const auto narrow = [](const Eigen::Vector3f& size) { return size.head<2>().minCoeff(); };
+  return withinTrainingRange(category, [&](const TrainingObject& o) { return narrow(o.size); },
+                             narrow(uprightBoxOf(hypothesis.box, to_gravity).size), slack);
 }
 
 void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {

@@ -153,8 +153,7 @@ int main(int argc, char** argv) {
     } else {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
-                            map_verification == "3d", !no_top_extent,
-                            !no_footprint_prior};
+                            map_verification == "3d", !no_top_extent, !no_footprint_prior};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;
