@@ -20,9 +20,9 @@ const char* toString(VoteWeighting w) {
   return "?";
 }
 
-float Calibration::confidence(float score, int support, float fit) const {
+float Calibration::confidence(float score, int support, float fit, float profile_distance) const {
   const double s = std::max(static_cast<double>(score), 1e-12);
-  const double logit = a * std::log(s) + c * std::log(s / std::max(support, 1)) + d * fit + b;
+  const double logit = a * std::log(s) + c * std::log(s / std::max(support, 1)) + d * fit + e * profile_distance + b;
   return static_cast<float>(1.0 / (1.0 + std::exp(-logit)));
 }
 

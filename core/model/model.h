@@ -126,17 +126,20 @@ struct TrainingObject {
 };
 
 // A category's confidence for a peak of score s gathered from n supporting keypoints, whose
-// verification fit is v (0.5 unverified): 1 / (1 + exp(-(a ln s + c ln(s / n) + d v + b))), fitted to the peaks the model finds in synthetic
+// verification fit is v (0.5 unverified) and whose surface lies at a profile distance g from the
+// training shapes' (Verification::profile_distance, 1 unverified):
+// 1 / (1 + exp(-(a ln s + c ln(s / n) + d v + e g + b))), fitted to the peaks the model finds in synthetic
 // scenes of held-out training objects among clutter. s / n, the vote mass per supporting
 // keypoint, says how well the keypoints agree whatever their number: the same object seen from
 // farther, or by a sparser sensor, has fewer keypoints but agrees as well.
 struct Calibration {
   float a = 0, b = 0, c = 0;
   float d = 0;  // 0 in models calibrated without verification
+  float e = 0;  // 0 in models calibrated without the shape profile
   // Peaks below this score were not looked at when fitting: recognition does not look at them.
   float min_score = 0;
   int positives = 0, negatives = 0;  // the peaks it was fitted to
-  float confidence(float score, int support, float fit = 0.5f) const;
+  float confidence(float score, int support, float fit = 0.5f, float profile_distance = 1.0f) const;
 };
 
 struct CategoryModel {

@@ -81,6 +81,7 @@ void writeCalibration(const Calibration& in, v1::Calibration* out) {
   out->set_b(in.b);
   out->set_c(in.c);
   out->set_d(in.d);
+  out->set_e(in.e);
   out->set_min_score(in.min_score);
   out->set_positives(in.positives);
   out->set_negatives(in.negatives);
@@ -97,7 +98,7 @@ class Reader {
   }
 
   Calibration calibration(const v1::Calibration& k, const std::string& where) const {
-    if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && std::isfinite(k.d()) &&
+    if (!(std::isfinite(k.a()) && std::isfinite(k.b()) && std::isfinite(k.c()) && std::isfinite(k.d()) && std::isfinite(k.e()) &&
           k.min_score() >= 0 && std::isfinite(k.min_score()))) {
       fail(where + " has a calibration that is not finite");
     }
@@ -106,6 +107,7 @@ class Reader {
     calibration.b = k.b();
     calibration.c = k.c();
     calibration.d = k.d();
+    calibration.e = k.e();
     calibration.min_score = k.min_score();
     calibration.positives = k.positives();
     calibration.negatives = k.negatives();

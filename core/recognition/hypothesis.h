@@ -28,6 +28,9 @@ struct Verification {
   // `seen`): more of them than `consistent` makes this hypothesis that one's duplicate.
   int claimed = 0;
   bool duplicate() const { return claimed > consistent; }
+  // How unlike the training shapes the scene's surface in the fitted box is, over height and
+  // distance from the box's axis (verification.h, shapeProfile): 0 alike, 2 nothing in common.
+  float profile_distance = 1.0f;
   int object = -1;     // the shape's training object (CategoryModel::objects)
   float yaw = 0;       // its heading about up in the gravity frame (rad)
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // its box centre, scene coordinates

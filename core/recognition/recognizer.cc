@@ -34,14 +34,19 @@ struct ConfidenceCurve {
   float threshold = 0;
   float operator()(const Hypothesis& peak) const {
     if (calibration) {
-      return calibration->confidence(peak.score, peak.support, peak.verification ? peak.verification->fit() : 0.5f);
+      return peak.verification ? calibration->confidence(peak.score, peak.support, peak.verification->fit(),
+                                                         peak.verification->profile_distance)
+                               : calibration->confidence(peak.score, peak.support);
     }
     return threshold > 0 ? 1.0f - std::exp2(-peak.score / threshold) : 1.0f;
   }
-  // The most a peak can reach once verified: with the best fit, when the fit raises confidence.
+  // The most a peak can reach once verified (or left unverified): with the fit and the profile
+  // distance at whichever end raises confidence.
   float best(const Hypothesis& peak) const {
-    if (calibration && calibration->d > 0) return calibration->confidence(peak.score, peak.support, 1.0f);
-    return (*this)(peak);
+    if (!calibration) return (*this)(peak);
+    return std::max(calibration->confidence(peak.score, peak.support),
+                    calibration->confidence(peak.score, peak.support, calibration->d > 0 ? 1.0f : 0.0f,
+                                            calibration->e < 0 ? 0.0f : 2.0f));
   }
   // The lowest score a peak of at least `confidence` can have: what the peak search starts from.
   float lowestScore(float confidence) const {

@@ -11,6 +11,7 @@
 // hypotheses verification method for 3D object recognition", ECCV 2012 (inliers and the
 // free-space term), done per hypothesis on a depth buffer instead of jointly, and with a pose
 // search in the gravity frame instead of ICP, since furniture only turns about up.
+#include <array>
 #include <cstdint>
 #include <optional>
 #include <unordered_set>
@@ -51,6 +52,31 @@ struct VerificationParams {
   // chairs than on true ones. false: every scene on a depth buffer from its viewpoint.
   bool maps_in_3d = true;
 };
+
+// A global shape descriptor in the gravity frame: where an object's surface lies over height (12
+// bins of a twelfth of the box's height, up to 1.2 of it) and over distance from the box's
+// vertical axis (4 rings of a quarter of the half-sides, the box's edge the outermost), as a
+// share of its points. A chair puts its surface at seat height and in its back, a table at the
+// top and the rim, a cabinet everywhere on its front. It is the shells-and-sectors shape
+// histogram of Ankerst, Kastenmueller, Kriegel and Seidl, "3D shape histograms for similarity
+// search and classification in spatial databases", SSD 1999, cut along up instead of radially,
+// since furniture stands upright. On the dev clouds' candidates with confidence above 0.1, the
+// distance to the nearest training shape told true chairs from false ones with AUC 0.87, against
+// 0.72 for the confidence (docs/EVALUATION.md). ESF and VFH describe the same region rotation-
+// invariantly and so cannot tell a seat at 0.45 m from one at 0.9 m.
+struct ShapeProfile {
+  static constexpr int kHeights = 12, kRings = 4;
+  std::array<float, kHeights * kRings> share{};
+  int points = 0;
+};
+
+// The profile of `points` given in the box's frame: x, y from its vertical axis along its sides,
+// z above its bottom; `size` its width, depth and height.
+ShapeProfile shapeProfile(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& size);
+
+// The chi-square distance of two profiles, sum (a - b)^2 / (a + b): 0 for the same, 2 for profiles
+// with no bin in common.
+float profileDistance(const ShapeProfile& a, const ShapeProfile& b);
 
 // Which cubes of a grid lie within one cube of a measured point: one bit per cube over the
 // points' bounding box, the cube's edge grown where the box would need more than kMaxCells.

@@ -106,7 +106,7 @@ nlohmann::json toJson(const Hypothesis& h) {
                       {"passed_selection", h.passed_selection}};
   if (h.verification) {
     const Verification& v = *h.verification;
-    j["verification"] = {{"fit", v.fit()},          {"seen", v.seen},     {"consistent", v.consistent}, {"claimed", v.claimed},
+    j["verification"] = {{"fit", v.fit()},          {"seen", v.seen},     {"consistent", v.consistent}, {"claimed", v.claimed}, {"profile_distance", v.profile_distance},
                          {"training_object", v.object}, {"yaw", v.yaw}, {"center", toJson(v.center)}};
   }
   if (!h.support_keypoints.empty()) {

@@ -91,6 +91,10 @@ int main(int argc, char** argv) {
                "calibrate on the rendered frames only, not also on them as unorganized point samples");
   app.add_flag("--no-verification", no_shapes,
                "keep no training shapes, so that recognition does not verify hypotheses against the scene's depth");
+  bool no_shape_profile = false;
+  app.add_flag("--no-shape-profile", no_shape_profile,
+               "calibrate confidence on the verification's fit alone, not also on how the measured surface's "
+               "profile over height matches the training shapes'");
   app.add_flag("--no-projector-shadow", no_shadow,
                "render training scans and calibration rooms without the structured-light projector's shadow");
   app.add_option("--pixel-shift", params.noise.pixel_shift,
@@ -150,6 +154,7 @@ int main(int argc, char** argv) {
   if (no_calibration) params.calibration.enabled = false;
   if (no_cloud_calibration) params.calibration.clouds = false;
   if (no_shapes) params.shape_spacing = 0;
+  if (no_shape_profile) params.calibration.shape_profile = false;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
     std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";

@@ -13,6 +13,7 @@
 #include "core/frontend/frontend.h"
 #include "core/recognition/recognizer.h"
 #include "core/recognition/suppression.h"
+#include "core/recognition/top_extent.h"
 #include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
 #include "core/training/background.h"
@@ -172,7 +173,16 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
                    intersectionOverUnion(uprightBoxOf(p.box, to_gravity), box) >= 0.25f;
         if (positive) matched[o] = true;
       }
-      out.push_back({static_cast<int>(c), p.score, p.support, positive, p.verification ? p.verification->fit() : 0.5f, cloud});
+      CalibrationSample& sample = out.emplace_back();
+      sample.category = static_cast<int>(c);
+      sample.score = p.score;
+      sample.support = p.support;
+      sample.positive = positive;
+      sample.cloud = cloud;
+      if (p.verification) {
+        sample.fit = p.verification->fit();
+        sample.profile_distance = p.verification->profile_distance;
+      }
     }
   }
 }
@@ -260,26 +270,32 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
   return samples;
 }
 
-Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
+Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool shape_profile) {
   Calibration fit;
   for (const auto& s : samples) (s.positive ? fit.positives : fit.negatives) += 1;
   if (fit.positives == 0 || fit.negatives == 0) {
     throw Error(ErrorCode::kInvalidInput, "calibration needs positive and negative peaks, got " +
                                               std::to_string(fit.positives) + " and " + std::to_string(fit.negatives));
   }
-  // Features (ln s, ln(s / n), fit, 1); weights (a, c, d, b).
-  using Vector = Eigen::Vector4d;
+  // Features (ln s, ln(s / n), fit, profile distance, 1); weights (a, c, d, e, b). Without the
+  // profile its feature is 0, so the ridge alone holds e at 0.
+  using Vector = Eigen::Matrix<double, 5, 1>;
+  using Matrix = Eigen::Matrix<double, 5, 5>;
   std::vector<Vector> x;
   std::vector<double> y;
   for (const auto& s : samples) {
     const double score = std::max(static_cast<double>(s.score), 1e-9);
-    x.emplace_back(std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit), 1.0);
+    Vector row;
+    row << std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit),
+        shape_profile ? static_cast<double>(s.profile_distance) : 0.0, 1.0;
+    x.push_back(row);
     y.push_back(s.positive ? 1.0 : 0.0);
   }
   // Newton's method on the mean log-loss, each step halved until the loss falls; the ridge (not
   // on the intercept) keeps a separable set finite.
   constexpr double kRidge = 1e-3;
-  const Vector ridge(kRidge, kRidge, kRidge, 0);
+  Vector ridge;
+  ridge << kRidge, kRidge, kRidge, kRidge, 0;
   const double n = static_cast<double>(x.size());
   const auto loss = [&](const Vector& w) {
     double sum = 0;
@@ -290,12 +306,13 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
     }
     return sum / n + 0.5 * w.dot(ridge.cwiseProduct(w));
   };
-  Vector w(1, 0, 0, 0);
+  Vector w;
+  w << 1, 0, 0, 0, 0;
   double current = loss(w);
   for (int iteration = 0; iteration < 100; ++iteration) {
     Vector gradient = ridge.cwiseProduct(w);
-    Eigen::Matrix4d hessian = ridge.asDiagonal();
-    hessian(3, 3) += 1e-9;
+    Matrix hessian = ridge.asDiagonal();
+    hessian(4, 4) += 1e-9;
     for (size_t i = 0; i < x.size(); ++i) {
       const double p = 1.0 / (1.0 + std::exp(-w.dot(x[i])));
       gradient += (p - y[i]) / n * x[i];
@@ -314,7 +331,8 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples) {
   fit.a = static_cast<float>(w[0]);
   fit.c = static_cast<float>(w[1]);
   fit.d = static_cast<float>(w[2]);
-  fit.b = static_cast<float>(w[3]);
+  fit.e = static_cast<float>(w[3]);
+  fit.b = static_cast<float>(w[4]);
   return fit;
 }
 
@@ -324,6 +342,10 @@ void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::
   for (size_t c = 0; c < model.categories.size(); ++c) {
     CategoryModel& category = model.categories[c];
     const auto t = category.thresholds.find({CodebookType::kGlobal, model.trained_knn.strategy, VoteWeighting::kLocalization});
+    // A flat-topped category's box is the top the scene measured (top_extent.h), not its fitted
+    // shape's: tables come in every length and carry what stands on and under them, so the profile
+    // in a training table's box would judge the box rather than the table.
+    const bool profile = params.calibration.shape_profile && !flatTopped(category);
     for (const bool cloud : {false, true}) {
       std::vector<CalibrationSample> own;
       for (const auto& s : samples) {
@@ -339,11 +361,11 @@ void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::
       line.precision(3);
       line << category.name << (cloud ? " calibration for clouds: " : " calibration: ");
       try {
-        Calibration fit = fitCalibration(own);
+        Calibration fit = fitCalibration(own, profile);
         if (!(fit.a + fit.c > 0)) throw Error(ErrorCode::kInvalidInput, "the fitted confidence falls with the score");
         fit.min_score = t == category.thresholds.end() ? 0.0f : params.calibration.lowest_score_fraction * t->second;
         slot = fit;
-        line << "ln s " << fit.a << ", ln(s / support) " << fit.c << ", fit " << fit.d << ", bias " << fit.b << " ("
+        line << "ln s " << fit.a << ", ln(s / support) " << fit.c  << ", fit " << fit.d << ", profile distance " << fit.e << ", bias " << fit.b << " ("
              << fit.positives << " positive and " << fit.negatives << " negative peaks)";
       } catch (const Error& e) {
         slot.reset();

@@ -9,7 +9,7 @@
 // robot's and a person's height.
 // Every peak of a category is labelled by whether an object of that category is there; a
 // logistic regression over the log score, the log score per supporting keypoint and, where the
-// model keeps training shapes, the verification's fit gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
+// model keeps training shapes, the verification's fit and shape profile distance gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
 #include <random>
 #include <string>
 #include <vector>
@@ -48,6 +48,7 @@ struct CalibrationSample {
   int support = 0;
   bool positive = false;
   float fit = 0.5f;  // Verification::fit(), 0.5 when not verified
+  float profile_distance = 1.0f;  // Verification::profile_distance, 1 when not verified
   bool cloud = false;  // found in a room seen as an unorganized point sample
 };
 
@@ -57,10 +58,11 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
                                                   const std::vector<PlacedObject>& objects,
                                                   const TrainingParams& params);
 
-// Logistic regression of `positive` on ln score, ln(score / support) and the fit (Newton's method with
-// step halving, a little ridge so that a separable category still gets finite slopes). Throws
-// Error(kInvalidInput) without both positives and negatives.
-Calibration fitCalibration(const std::vector<CalibrationSample>& samples);
+// Logistic regression of `positive` on ln score, ln(score / support), the fit and, with
+// `shape_profile`, the profile distance (Newton's method with step halving, a little ridge so that
+// a separable category still gets finite slopes). Throws Error(kInvalidInput) without both
+// positives and negatives.
+Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool shape_profile = true);
 
 // Fits every category of `model` that has positives and negatives among the samples, the
 // frames' samples into its calibration and the point samples' into its cloud_calibration; the

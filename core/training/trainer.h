@@ -31,6 +31,10 @@ struct CalibrationParams {
   float cloud_fraction_min = 0.04f, cloud_fraction_max = 0.2f;
   // Peaks are collected down to this fraction of each category's leave-one-out threshold.
   float lowest_score_fraction = 0.02f;
+  // Whether the confidence of categories that are not flat-topped (top_extent.h) weighs the
+  // verification's shape profile distance (verification.h, ShapeProfile) besides the fit; false
+  // fits it without (ism-train --no-shape-profile).
+  bool shape_profile = true;
   uint32_t seed = 7;
 };
 

@@ -186,6 +186,7 @@ void resultToProto(const RecognitionResult& result, v1::RecognitionResult* out) 
       vp->set_claimed(static_cast<uint32_t>(v.claimed));
       vp->set_training_object(v.object);
       vp->set_yaw(v.yaw);
+      vp->set_profile_distance(v.profile_distance);
       toProto(v.center, vp->mutable_center());
     }
   }
@@ -227,6 +228,7 @@ RecognitionResult resultFromProto(const v1::RecognitionResult& in) {
       v.claimed = static_cast<int>(vp.claimed());
       v.object = vp.training_object();
       v.yaw = vp.yaw();
+      v.profile_distance = vp.profile_distance();
       v.center = fromProto(vp.center());
       hypothesis.verification = v;
     }

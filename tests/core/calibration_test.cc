@@ -85,3 +85,32 @@ TEST(CalibrationRoom, BackgroundFurnitureStandsAmongTheClutter) {
 
 }  // namespace
 }  // namespace ism
+
+namespace ism {
+namespace {
+
+TEST(FitCalibration, TheProfileDecidesWhereScoreAndFitCannot) {
+  // Scores and fits drawn alike for both; positives' surface is shaped like the training shapes
+  // (profile distance 0.1-0.5), negatives' is not (0.6-1.4).
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> score(0.05f, 2.0f), fit(0.3f, 0.9f), near(0.1f, 0.5f), far(0.6f, 1.4f);
+  std::vector<CalibrationSample> samples;
+  for (int i = 0; i < 400; ++i) {
+    CalibrationSample& s = samples.emplace_back();
+    s.positive = i % 4 == 0;
+    s.score = score(rng);
+    s.support = 10;
+    s.fit = fit(rng);
+    s.profile_distance = s.positive ? near(rng) : far(rng);
+  }
+  const Calibration with = fitCalibration(samples);
+  EXPECT_LT(with.e, -5.0f);
+  EXPECT_GT(with.confidence(0.5f, 10, 0.6f, 0.2f), 0.9f);
+  EXPECT_LT(with.confidence(0.5f, 10, 0.6f, 1.0f), 0.1f);
+  const Calibration without = fitCalibration(samples, false);
+  EXPECT_EQ(without.e, 0.0f);
+  EXPECT_NEAR(without.confidence(0.5f, 10, 0.6f, 0.2f), without.confidence(0.5f, 10, 0.6f, 1.0f), 1e-6f);
+}
+
+}  // namespace
+}  // namespace ism

@@ -53,6 +53,7 @@ Model sampleModel() {
     calibration.b = -2.0f;
     calibration.c = 0.25f;
     calibration.d = 3.5f;
+    calibration.e = -1.75f;
     calibration.min_score = 0.01f;
     calibration.positives = 40;
     calibration.negatives = 400;
@@ -135,7 +136,8 @@ TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
     }
     ASSERT_TRUE(b.calibration);
     EXPECT_EQ(b.calibration->d, 3.5f);
-    EXPECT_EQ(b.calibration->confidence(2.0f, 5, 0.8f), a.calibration->confidence(2.0f, 5, 0.8f));
+    EXPECT_EQ(b.calibration->e, -1.75f);
+    EXPECT_EQ(b.calibration->confidence(2.0f, 5, 0.8f, 0.3f), a.calibration->confidence(2.0f, 5, 0.8f, 0.3f));
     ASSERT_EQ(b.cloud_calibration.has_value(), a.cloud_calibration.has_value()) << a.name;
     if (a.cloud_calibration) EXPECT_EQ(b.cloud_calibration->b, -4.0f);
   }

@@ -230,3 +230,47 @@ TEST(Verification, AMapsHypothesisAtItsViewpointIsChecked) {
 
 }  // namespace
 }  // namespace ism
+
+namespace ism {
+namespace {
+
+TEST(ShapeProfile, SharesOverHeightAndRingsOfTheBox) {
+  const Eigen::Vector3f size(1.0f, 0.5f, 1.0f);
+  // Two points in the axis' ring at a twentieth of the height, one on the box's edge near the top,
+  // one past the edge and above the box (counted in the outermost ring and the highest bin).
+  const ShapeProfile p = shapeProfile({{0.0f, 0.0f, 0.05f}, {0.1f, 0.02f, 0.05f}, {0.49f, 0.0f, 0.95f}, {0.7f, 0.3f, 2.0f}},
+                                      size);
+  EXPECT_EQ(p.points, 4);
+  EXPECT_FLOAT_EQ(p.share[0 * ShapeProfile::kRings + 0], 0.5f);
+  EXPECT_FLOAT_EQ(p.share[9 * ShapeProfile::kRings + 3], 0.25f);
+  EXPECT_FLOAT_EQ(p.share[11 * ShapeProfile::kRings + 3], 0.25f);
+  EXPECT_FLOAT_EQ(profileDistance(p, p), 0.0f);
+  const ShapeProfile other = shapeProfile({{0.0f, 0.0f, 0.55f}}, size);
+  EXPECT_FLOAT_EQ(profileDistance(p, other), 2.0f) << "no bin in common";
+  EXPECT_FLOAT_EQ(profileDistance(p, other), profileDistance(other, p));
+}
+
+TEST(ShapeProfile, AChairsSurfaceIsNearerAChairsThanACabinetsIs) {
+  // The chair before the wall, and a cabinet (a closed box of a chair's width and depth, a little
+  // taller) standing apart: the chair's verification finds the measured surface shaped as its
+  // training shape, the cabinet's finds it spread over its whole front.
+  const Room reference = chairBeforeWall();
+  const Mesh cabinet = testing::boxMesh({-0.25f, -0.25f, 0.0f}, {0.25f, 0.25f, 1.0f});
+  std::vector<SceneObject> objects{{"chair", reference.chair, kChairX, kChairY, kChairYaw},
+                                   {"", cabinet, -1.2f, 0.6f, 0.0f},
+                                   {"", testing::boxMesh({-3, 2.0f, 0}, {3, 2.1f, 2.5f}), 0, 0, 0}};
+  SyntheticSceneParams params;
+  params.camera_eye = {0.0f, -2.6f, 1.4f};
+  params.camera_target = {-0.4f, 0.4f, 0.4f};
+  params.floor_size = 8.0f;
+  const SyntheticScene rendered = composeScene(objects, params);
+  const VerificationScene scene = makeVerificationScene(rendered.scene, knownFloor());
+  const auto on_chair = verify(scene, reference.chairs, chairAt(reference, kChairX, kChairY, kChairYaw));
+  const auto on_cabinet = verify(scene, reference.chairs, chairAt(reference, -1.2f, 0.6f, 0.0f));
+  ASSERT_TRUE(on_chair.has_value() && on_cabinet.has_value());
+  EXPECT_LT(on_chair->profile_distance, 0.5f * on_cabinet->profile_distance)
+      << on_chair->profile_distance << " against " << on_cabinet->profile_distance;
+}
+
+}  // namespace
+}  // namespace ism
