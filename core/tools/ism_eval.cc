@@ -107,13 +107,15 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"3d", "viewpoint"}))
       ->capture_default_str();
   bool no_top_extent = false;
-  real->add_flag("--no-top-extent", no_top_extent,
-                 "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top "
-                 "(top_extent.h)");
   bool no_footprint_prior = false;
-  real->add_flag("--no-footprint-prior", no_footprint_prior,
-                 "default preset: keep tables whose measured top is deeper or shallower than every training table's "
-                 "(top_extent.h)");
+  for (CLI::App* sub : {baseline, real}) {
+    sub->add_flag("--no-top-extent", no_top_extent,
+                  "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top "
+                  "(top_extent.h)");
+    sub->add_flag("--no-footprint-prior", no_footprint_prior,
+                  "default preset: keep tables whose measured top is deeper or shallower than every training table's "
+                  "(top_extent.h)");
+  }
   std::string preset = "default";
   float min_confidence = 0.5f;
   for (CLI::App* sub : {baseline, real}) {
@@ -147,7 +149,10 @@ int main(int argc, char** argv) {
       }
       training.progress = progress;
       if (training_seed) ism::reseed(training, *training_seed);
-      auto result = ism::runBaseline(split, training, {ism::parseRecognitionPreset(preset), min_confidence});
+      ism::EvalRecognition recognition{ism::parseRecognitionPreset(preset), min_confidence};
+      recognition.top_extent = !no_top_extent;
+      recognition.footprint_prior = !no_footprint_prior;
+      auto result = ism::runBaseline(split, training, recognition);
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
     } else {
