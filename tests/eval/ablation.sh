@@ -26,7 +26,8 @@ mkdir -p "$work"
 # Rows before the surface keypoints take contours alone; rows before the height test's
 # normalisation spread a keypoint's weight over all of its codeword's votes; rows before the table
 # top keep their fitted shapes' boxes, and rows before the footprint prior keep every table top.
-contours="--surface-keypoints 0 --height-weighting lost"
+# Rows before the shape profile calibrate on the verification's fit alone.
+contours="--surface-keypoints 0 --height-weighting lost --no-shape-profile"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
 fine="$near --seed-front-end --no-cloud-calibration --no-verification"
@@ -48,10 +49,11 @@ steps=(
   "background|$contours --calibration-background 0|--preset default --map-verification viewpoint --no-top-extent|+ codewords weighed against 21 background meshes (manifest rows of category background)"
   "background-rooms|$contours|--preset default --map-verification viewpoint --no-top-extent|+ up to 2 of the background meshes in each calibration room"
   "maps|=background-rooms|--preset default --no-top-extent|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
-  "surface-keypoints|--height-weighting lost|--preset default --no-top-extent|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
-  "height-normalized||--preset default --no-top-extent|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's"
+  "surface-keypoints|--height-weighting lost --no-shape-profile|--preset default --no-top-extent|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
+  "height-normalized|--no-shape-profile|--preset default --no-top-extent|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's"
   "table-top|=height-normalized|--preset default --no-footprint-prior|+ tables' boxes spanning the scene's table top, not their fitted shape"
-  "footprint|=height-normalized|--preset default|+ tables whose top is deeper or shallower than every training table's rejected (the default)"
+  "footprint|=height-normalized|--preset default|+ tables whose top is deeper or shallower than every training table's rejected"
+  "shape-profile||--preset default|+ the measured surface's profile over height and distance from the box's axis against the training shapes' in the confidence, but for flat-topped categories (the default)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
