@@ -33,6 +33,7 @@ Hypothesis sampleHypothesis() {
   v.claimed = 4;
   v.object = 2;
   v.yaw = 0.5f;
+  v.profile_distance = 0.375f;
   v.center = {1.01f, -2.0f, 0.45f};
   h.verification = v;
   return h;
@@ -76,6 +77,7 @@ TEST(WireMessages, ResultsRoundTripWithConfidenceAlternativesAndGravity) {
   EXPECT_EQ(message.hypotheses(0).alternatives(1).category(), "couch");
   EXPECT_FLOAT_EQ(message.hypotheses(0).verification().fit(), (270.0f + 10) / (300 + 20));
   EXPECT_EQ(message.hypotheses(0).verification().training_object(), 2);
+  EXPECT_FLOAT_EQ(message.hypotheses(0).verification().profile_distance(), 0.375f);
   EXPECT_FALSE(message.hypotheses(1).has_verification());
   EXPECT_EQ(message.gravity().source(), v1::UP_SOURCE_FLOOR);
   EXPECT_TRUE(message.gravity().has_floor_level());
@@ -105,6 +107,7 @@ TEST(WireMessages, ResultsRoundTripWithConfidenceAlternativesAndGravity) {
       EXPECT_EQ(a.verification->claimed, e.verification->claimed);
       EXPECT_EQ(a.verification->object, e.verification->object);
       EXPECT_EQ(a.verification->yaw, e.verification->yaw);
+      EXPECT_EQ(a.verification->profile_distance, e.verification->profile_distance);
       EXPECT_EQ(a.verification->center, e.verification->center);
     }
   }
