@@ -428,7 +428,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   const size_t keep = std::min<size_t>(coarse.size(), static_cast<size_t>(std::max(1, params.refined_poses)));
   std::partial_sort(coarse.begin(), coarse.begin() + static_cast<long>(keep), coarse.end(),
                     [](const auto& a, const auto& b) { return a.first > b.first; });
-  Verification best;
+  // The refinement ranks poses alone; the best is described once, after it.
   Pose best_pose;
   float best_rank = -std::numeric_limits<float>::infinity();
   for (size_t k = 0; k < keep; ++k) {
@@ -442,11 +442,6 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
                                             params.ranking_points, pose, scratch);
           if (a.rank() <= best_rank) continue;
           best_rank = a.rank();
-          best.object = pose.object;
-          best.yaw = std::remainder(pose.yaw, 2 * kPi);
-          const TrainingObject& object = category.objects[static_cast<size_t>(pose.object)];
-          const Eigen::Vector3f fitted(pose.xy.x(), pose.xy.y(), floor_z + object.size.z() / 2);
-          best.center = scene.origin + scene.to_gravity.transpose() * fitted;
           best_pose = pose;
         }
       }
@@ -454,9 +449,14 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   }
   const TrainingObject& object = category.objects[static_cast<size_t>(best_pose.object)];
   const Agreement a = poseAgreement(scene, sv, object.surface, params.max_points, best_pose, scratch, explained);
+  Verification best;
   best.seen = a.seen;
   best.consistent = a.consistent;
   best.claimed = a.claimed;
+  best.object = best_pose.object;
+  best.yaw = std::remainder(best_pose.yaw, 2 * kPi);
+  const Eigen::Vector3f fitted(best_pose.xy.x(), best_pose.xy.y(), floor_z + object.size.z() / 2);
+  best.center = scene.origin + scene.to_gravity.transpose() * fitted;
   best.profile_distance = profileDistanceAt(scene, category, Eigen::Vector3f(best_pose.xy.x(), best_pose.xy.y(), floor_z),
                                             best_pose.yaw, object.size);
   return best;
