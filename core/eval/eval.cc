@@ -61,6 +61,8 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.verify = recognition.verify;
   options.suppression.shared_surface = recognition.shared_surface;
   options.verification.maps_in_3d = recognition.maps_in_3d;
+  options.verification.icp_iterations = recognition.icp_iterations;
+  options.verification.fit_terms = recognition.fit_terms;
   options.top_extent.enabled = recognition.top_extent;
   options.top_extent.footprint_prior = recognition.footprint_prior;
   return recognizeFeatures(model, features, options, scene).hypotheses;

@@ -41,6 +41,8 @@ struct EvalRecognition {
   bool maps_in_3d = true;      // VerificationParams::maps_in_3d
   bool top_extent = true;      // TopExtentParams::enabled
   bool footprint_prior = true; // TopExtentParams::footprint_prior
+  int icp_iterations = 0;      // VerificationParams::icp_iterations
+  FitTerms fit_terms = FitTerms::kBoth;  // VerificationParams::fit_terms
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

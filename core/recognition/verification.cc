@@ -96,10 +96,24 @@ struct Pose {
 
 struct Agreement {
   int seen = 0, consistent = 0, tested = 0;
+  int hidden = 0;   // behind nearer measured surface
   int claimed = 0;  // agreeing, on surface a better hypothesis explained
   // What poses are ranked by: agreeing minus twice the seen-through share of the points looked
   // at, so that a larger shape does not win by its size alone.
   float rank() const { return tested > 0 ? static_cast<float>(consistent - 2 * (seen - consistent)) / static_cast<float>(tested) : 0.0f; }
+
+  // The counts as `terms` weigh them (FitTerms): seen becomes the pixels the fit is a share of,
+  // consistent those counted for it.
+  Agreement weighed(FitTerms terms) const {
+    Agreement a = *this;
+    if (terms == FitTerms::kInliers) {
+      a.seen = seen + hidden;
+    } else if (terms == FitTerms::kFreeSpace) {
+      a.seen = seen + hidden;
+      a.consistent = consistent + hidden;
+    }
+    return a;
+  }
 };
 
 // The cubes better hypotheses explained, copied once per verified hypothesis into an open-addressing
@@ -135,11 +149,14 @@ class CellSet {
 };
 
 // A cube of the gravity frame, for the surface a hypothesis has explained.
-uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
-  const Eigen::Vector3i c = (p / edge).array().floor().cast<int>();
+uint64_t packCell(const Eigen::Vector3i& c) {
   return (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1fffff) << 42) |
          (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1fffff) << 21) |
          static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1fffff);
+}
+
+uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
+  return packCell((p / edge).array().floor().cast<int>());
 }
 
 // A shape point agrees with a map where a measured point lies in its cube of this edge or a
@@ -190,6 +207,7 @@ struct ShapeView {
   float margin = 0;
   const CellSet& claimed;  // explained by a better hypothesis
   float cell = 0.04f;
+  FitTerms terms = FitTerms::kBoth;
 };
 
 // A z-buffer of the shape's points over a LocalView's pixels, kept between poses: only the
@@ -242,7 +260,11 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
     nearest.index = -1;
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];
     const float m = depthMargin(z, sv.margin);
-    if (!std::isfinite(measured) || measured < z - m) continue;  // no measurement, or something in front
+    if (!std::isfinite(measured)) continue;  // no measurement
+    if (measured < z - m) {  // something in front
+      ++a.hidden;
+      continue;
+    }
     if (measured > z + m) {  // seen through
       ++a.seen;
       continue;
@@ -264,8 +286,9 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
 Agreement poseAgreement(const VerificationScene& scene, const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape,
                         int points, const Pose& pose, ShapeBuffer& buffer,
                         std::unordered_set<uint64_t>* explained = nullptr) {
-  return scene.map ? agreementInMap(scene, sv.floor_z, sv.claimed, shape, points, pose, explained)
-                   : agreement(sv, shape, points, pose, buffer, explained);
+  return (scene.map ? agreementInMap(scene, sv.floor_z, sv.claimed, shape, points, pose, explained)
+                    : agreement(sv, shape, points, pose, buffer, explained))
+      .weighed(sv.terms);
 }
 
 }  // namespace
@@ -381,6 +404,139 @@ float profileDistanceAt(const VerificationScene& scene, const CategoryModel& cat
   return nearest;
 }
 
+// The measured points near a hypothesis, above the floor, binned in cubes of the ICP gate so that
+// the nearest one within the gate is among the 27 cubes around a query.
+class NearestPoints {
+ public:
+  NearestPoints(const VerificationScene& scene, const Eigen::Vector3f& middle, float radius, float floor_z, float gate)
+      : gate_(gate) {
+    const float r2 = radius * radius;
+    std::vector<std::pair<uint64_t, int>> keyed;
+    for (size_t i = 0; i < scene.points.size(); ++i) {
+      const Eigen::Vector3f& p = scene.points[i];
+      if ((p - middle).squaredNorm() > r2 || p.z() < floor_z + 0.03f) continue;
+      keyed.emplace_back(cellOf(p, gate_), static_cast<int>(i));
+    }
+    std::sort(keyed.begin(), keyed.end());
+    keys_.reserve(keyed.size());
+    points_.reserve(keyed.size());
+    for (const auto& [key, i] : keyed) {
+      keys_.push_back(key);
+      points_.push_back(scene.points[static_cast<size_t>(i)]);
+    }
+  }
+
+  // The nearest point to q within the gate, or nothing.
+  const Eigen::Vector3f* nearest(const Eigen::Vector3f& q) const {
+    const Eigen::Vector3i c = (q / gate_).array().floor().cast<int>();
+    const Eigen::Vector3f* best = nullptr;
+    float best_d2 = gate_ * gate_;
+    for (int dx = -1; dx <= 1; ++dx) {
+      for (int dy = -1; dy <= 1; ++dy) {
+        for (int dz = -1; dz <= 1; ++dz) {
+          const uint64_t key = packCell(c + Eigen::Vector3i(dx, dy, dz));
+          auto it = std::lower_bound(keys_.begin(), keys_.end(), key);
+          for (; it != keys_.end() && *it == key; ++it) {
+            const Eigen::Vector3f& p = points_[static_cast<size_t>(it - keys_.begin())];
+            const float d2 = (p - q).squaredNorm();
+            if (d2 < best_d2) best_d2 = d2, best = &p;
+          }
+        }
+      }
+    }
+    return best;
+  }
+
+ private:
+  float gate_;
+  std::vector<uint64_t> keys_;
+  std::vector<Eigen::Vector3f> points_;
+};
+
+// The shape points of `pose` the sensor would see: front-most in their pixel, and not behind a
+// nearer measured surface. A map has no sensor: every point above the floor.
+std::vector<int> visiblePoints(const VerificationScene& scene, const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape,
+                               int points, const Pose& pose, ShapeBuffer& buffer) {
+  const int n = std::min<int>(points, static_cast<int>(shape.size()));
+  std::vector<int> out;
+  if (scene.map) {
+    for (int i = 0; i < n; ++i) {
+      if (shape[static_cast<size_t>(i)].z() >= 0.05f) out.push_back(i);
+    }
+    return out;
+  }
+  buffer.touched.clear();
+  const Eigen::Matrix3f turn = headingOf(pose);
+  const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
+  const Eigen::Matrix3f to_view = sv.view.axes * turn;
+  const Eigen::Vector3f view_offset = sv.view.axes * offset;
+  for (int i = 0; i < n; ++i) {
+    if (shape[static_cast<size_t>(i)].z() < 0.05f) continue;  // on the floor
+    float z = 0;
+    const int pixel = sv.view.project(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
+    if (pixel < 0) continue;
+    ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
+    if (nearest.index < 0) {
+      buffer.touched.push_back(pixel);
+      nearest = {z, i};
+    } else if (z < nearest.z) {
+      nearest = {z, i};
+    }
+  }
+  for (const int pixel : buffer.touched) {
+    ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
+    const float measured = sv.view.depth[static_cast<size_t>(pixel)];
+    if (std::isfinite(measured) && measured >= nearest.z - depthMargin(nearest.z, sv.margin)) out.push_back(nearest.index);
+    nearest.index = -1;
+  }
+  return out;
+}
+
+// Up to `iterations` steps of ICP from `start`: the visible shape points paired with their nearest
+// measured points, the turn about up and the shift along the floor that bring the pairs' horizontal
+// positions closest (the 2D Procrustes solution), until a step moves the pose by under a
+// millimetre and a tenth of a degree. Nothing when too few points pair up.
+std::optional<Pose> alignByIcp(const VerificationScene& scene, const ShapeView& sv, const NearestPoints& measured,
+                               const std::vector<Eigen::Vector3f>& shape, const Pose& start,
+                               const VerificationParams& params, ShapeBuffer& buffer) {
+  constexpr size_t kMinPairs = 20;
+  Pose pose = start;
+  bool moved = false;
+  for (int iteration = 0; iteration < params.icp_iterations; ++iteration) {
+    const std::vector<int> visible = visiblePoints(scene, sv, shape, params.ranking_points, pose, buffer);
+    const Eigen::Matrix3f turn = headingOf(pose);
+    const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
+    std::vector<std::pair<Eigen::Vector2f, Eigen::Vector2f>> pairs;  // (shape, measured), horizontal
+    pairs.reserve(visible.size());
+    for (const int i : visible) {
+      const Eigen::Vector3f p = turn * shape[static_cast<size_t>(i)] + offset;
+      if (const Eigen::Vector3f* q = measured.nearest(p)) pairs.emplace_back(p.head<2>(), q->head<2>());
+    }
+    if (pairs.size() < kMinPairs) break;
+    Eigen::Vector2f a_mean = Eigen::Vector2f::Zero(), b_mean = Eigen::Vector2f::Zero();
+    for (const auto& [a, b] : pairs) a_mean += a, b_mean += b;
+    a_mean /= static_cast<float>(pairs.size());
+    b_mean /= static_cast<float>(pairs.size());
+    float cross = 0, dot = 0;
+    for (const auto& [a, b] : pairs) {
+      const Eigen::Vector2f u = a - a_mean, v = b - b_mean;
+      dot += u.dot(v);
+      cross += u.x() * v.y() - u.y() * v.x();
+    }
+    const float angle = std::atan2(cross, dot);
+    Eigen::Matrix2f rotation;
+    rotation << std::cos(angle), -std::sin(angle), std::sin(angle), std::cos(angle);
+    const Eigen::Vector2f xy = rotation * (pose.xy - a_mean) + b_mean;
+    const float step = (xy - pose.xy).norm();
+    pose.yaw += angle;
+    pose.xy = xy;
+    moved = true;
+    if (step < 1e-3f && std::abs(angle) < 0.002f) break;
+  }
+  if (!moved) return std::nullopt;
+  return pose;
+}
+
 }  // namespace
 
 bool hasShapes(const CategoryModel& category) {
@@ -410,7 +566,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
 
   ShapeBuffer scratch(view->depth.size());
   const CellSet claimed_cells(claimed);
-  const ShapeView sv{*view, floor_z, params.margin, claimed_cells, 0.05f};
+  const ShapeView sv{*view, floor_z, params.margin, claimed_cells, 0.05f, params.fit_terms};
   std::vector<std::pair<float, Pose>> coarse;
   for (size_t o = 0; o < category.objects.size(); ++o) {
     if (category.objects[o].surface.empty()) continue;  // a shape calibration holds out
@@ -445,6 +601,13 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
           best_pose = pose;
         }
       }
+    }
+  }
+  if (params.icp_iterations > 0) {
+    const std::vector<Eigen::Vector3f>& shape = category.objects[static_cast<size_t>(best_pose.object)].surface;
+    const NearestPoints measured(scene, middle, radius, floor_z, params.icp_gate);
+    if (const std::optional<Pose> aligned = alignByIcp(scene, sv, measured, shape, best_pose, params, scratch)) {
+      if (poseAgreement(scene, sv, shape, params.ranking_points, *aligned, scratch).rank() > best_rank) best_pose = *aligned;
     }
   }
   const TrainingObject& object = category.objects[static_cast<size_t>(best_pose.object)];

@@ -9,8 +9,8 @@
 // hypothesis' fit, which the category's calibration turns into confidence with the vote score.
 // This is hypothesis verification as in Aldoma, Tombari, Di Stefano and Vincze, "A global
 // hypotheses verification method for 3D object recognition", ECCV 2012 (inliers and the
-// free-space term), done per hypothesis on a depth buffer instead of jointly, and with a pose
-// search in the gravity frame instead of ICP, since furniture only turns about up.
+// free-space term), done per hypothesis on a depth buffer instead of jointly, with a pose search
+// in the gravity frame (furniture only turns about up) and then ICP under the same constraint.
 #include <array>
 #include <cstdint>
 #include <optional>
@@ -25,6 +25,17 @@
 #include "core/recognition/hypothesis.h"
 
 namespace ism {
+
+// Which of the depth test's terms the fit is made of (docs/EVALUATION.md has a row for each).
+// kBoth: the share of the shape's seen pixels that the scene explains, where a pixel the sensor
+// measured at the shape's depth explains it, one it saw through (measured farther) counts
+// against, and one hidden behind nearer surface says nothing. kInliers: without free space, a
+// seen-through pixel is not told from a hidden one; the fit is the share of the shape's pixels with
+// a measurement that the scene explains. kFreeSpace: without inliers, only seeing through counts;
+// the fit is the share of the shape's pixels with a measurement that the sensor did not see
+// through. Poses are ranked by the same terms. A model is to be recognised with the terms its
+// calibration was fitted with (ism-train and ism-eval --fit-terms).
+enum class FitTerms { kBoth, kInliers, kFreeSpace };
 
 struct VerificationParams {
   int coarse_yaws = 8;          // headings tried, evenly spaced, starting from the box's
@@ -42,6 +53,15 @@ struct VerificationParams {
   // ranking_points of them, and the best is scored on max_points.
   int ranking_points = 200;
   int max_points = 800;
+  // ICP after the grid: the best refined pose is moved by up to icp_iterations steps of
+  // point-to-point ICP restricted to a turn about up and a shift along the floor (closed form in
+  // the plane, Besl and McKay, "A method for registration of 3-D shapes", PAMI 1992), each of the
+  // ranking points the sensor sees (a map: every one) paired with the nearest measured point
+  // above the floor within icp_gate. The aligned pose replaces the grid's only when it ranks
+  // better. 0: the grid's pose.
+  int icp_iterations = 0;
+  float icp_gate = 0.08f;
+  FitTerms fit_terms = FitTerms::kBoth;
   // Depth agreement: margin + 2 sigma(z), sigma the Kinect's axial noise at depth z (Nguyen,
   // Izadi and Lovell, "Modeling Kinect sensor noise for improved 3D reconstruction and
   // tracking", 3DIMPVT 2012): 0.0012 + 0.0019 (z - 0.4)^2 m.

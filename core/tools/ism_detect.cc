@@ -59,6 +59,11 @@ int main(int argc, char** argv) {
   app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
   bool no_verify = false;
   app.add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified against the scene");
+  app.add_option("--icp", options.verification.icp_iterations,
+                 "default preset: steps of ICP (a turn about up and a shift along the floor) after verification's pose "
+                 "search; 0 keeps the search's pose")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
   bool no_top_extent = false;
   app.add_flag("--no-top-extent", no_top_extent,
                "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top");

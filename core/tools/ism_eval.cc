@@ -3,7 +3,9 @@
 #include <CLI/CLI.hpp>
 #include <fstream>
 #include <iostream>
+#include <map>
 #include <optional>
+#include <string>
 
 #include "core/common/error.h"
 #include "core/eval/eval.h"
@@ -106,6 +108,20 @@ int main(int argc, char** argv) {
                    "(verification.h)")
       ->check(CLI::IsMember({"3d", "viewpoint"}))
       ->capture_default_str();
+  int icp_iterations = 0;
+  real->add_option("--icp", icp_iterations,
+                   "default preset: steps of ICP (a turn about up and a shift along the floor) after verification's "
+                   "pose search; 0 keeps the search's pose (verification.h)")
+      ->check(CLI::Range(0, 100))
+      ->capture_default_str();
+  ism::FitTerms fit_terms = ism::FitTerms::kBoth;
+  const std::map<std::string, ism::FitTerms> fit_term_names{
+      {"both", ism::FitTerms::kBoth}, {"inliers", ism::FitTerms::kInliers}, {"free-space", ism::FitTerms::kFreeSpace}};
+  real->add_option("--fit-terms", fit_terms,
+                   "default preset: the terms of verification's fit, both, inliers (no free space) or free-space (no "
+                   "inliers), as the model was trained with (ism-train --fit-terms; verification.h)")
+      ->transform(CLI::CheckedTransformer(fit_term_names))
+      ->default_str("both");
   bool no_top_extent = false;
   bool no_footprint_prior = false;
   for (CLI::App* sub : {baseline, real}) {
@@ -158,7 +174,8 @@ int main(int argc, char** argv) {
     } else {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
-                            map_verification == "3d", !no_top_extent, !no_footprint_prior};
+                            map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
+                            fit_terms};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

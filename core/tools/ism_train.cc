@@ -112,6 +112,14 @@ int main(int argc, char** argv) {
   app.add_option("--calibration-objects", params.calibration.max_objects,
                  "held-out furniture placed in each calibration room (1 to this many)")
       ->check(CLI::PositiveNumber);
+  const std::map<std::string, ism::FitTerms> fit_terms{
+      {"both", ism::FitTerms::kBoth}, {"inliers", ism::FitTerms::kInliers}, {"free-space", ism::FitTerms::kFreeSpace}};
+  app.add_option("--fit-terms", params.calibration.fit_terms,
+                 "the terms of verification's fit the calibration rooms are verified with: both, inliers (no "
+                 "free space) or free-space (no inliers); recognise with ism-eval --fit-terms the same "
+                 "(verification.h, FitTerms)")
+      ->transform(CLI::CheckedTransformer(fit_terms))
+      ->default_str("both");
   std::optional<uint32_t> training_seed;
   app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "

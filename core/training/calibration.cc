@@ -147,7 +147,8 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
 // positive, every other peak that is not another peak of that object a negative.
 void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
-                const VerificationScene& view, bool cloud, std::vector<CalibrationSample>& out) {
+                const VerificationScene& view, bool cloud, const VerificationParams& verification,
+                std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -155,7 +156,7 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
       if (p.category == name) own.push_back(p);
     }
     own = suppressOverlaps(std::move(own), to_gravity);  // one per object, as recognition keeps
-    verifyHypotheses(view, model, own);
+    verifyHypotheses(view, model, own, verification);
     own.erase(std::remove_if(own.begin(), own.end(),
                              [](const Hypothesis& h) { return h.verification && h.verification->duplicate(); }),
               own.end());
@@ -235,6 +236,8 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     options.strategy = strategy;
     options.min_confidence = 0;
     options.one_answer_per_object = false;
+    VerificationParams verification;
+    verification.fit_terms = cp.fit_terms;
     parallelFor(cp.rooms_per_fold, trainingThreads(params.threads), [&](int r) {
       std::mt19937 rng(cp.seed + static_cast<uint32_t>(fold * 100003 + r));
       const CalibrationRoom room = composeCalibrationRoom(candidates, background, cp, params.noise, rng);
@@ -253,7 +256,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
           category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
           auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
           const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, found);
+          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, found);
         }
       };
       look(room.scene.scene, false);

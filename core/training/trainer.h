@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/model/model.h"
+#include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
 #include "core/training/manifest.h"
 
@@ -35,6 +36,9 @@ struct CalibrationParams {
   // verification's shape profile distance (verification.h, ShapeProfile) besides the fit; false
   // fits it without (ism-train --no-shape-profile).
   bool shape_profile = true;
+  // The terms of verification's fit the rooms' peaks are verified with (ism-train --fit-terms);
+  // recognition is to use the same.
+  FitTerms fit_terms = FitTerms::kBoth;
   uint32_t seed = 7;
 };
 

@@ -96,6 +96,34 @@ TEST(Verification, RankingPosesOnFewerPointsFindsTheSamePose) {
   EXPECT_GT(b->seen, cheap.ranking_points) << "counted over max_points, not ranking_points";
 }
 
+TEST(Verification, IcpBringsTheShapeOntoTheChair) {
+  // The grid switched off (one heading, no steps): the pose stays where voting put it, 9 cm and
+  // 0.3 rad off; ICP moves it onto the chair, and the chair then explains more of the shape.
+  const Room room = chairBeforeWall();
+  const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
+  const Hypothesis start = chairAt(room, kChairX + 0.07f, kChairY - 0.06f, kChairYaw + 0.3f);
+  VerificationParams grid_off;
+  grid_off.coarse_yaws = 1;
+  grid_off.coarse_steps = 0;
+  grid_off.refined_poses = 1;
+  grid_off.fine_yaw = 0;
+  grid_off.fine_shift = 0;
+  grid_off.icp_iterations = 0;
+  VerificationParams icp = grid_off;
+  icp.icp_iterations = 10;
+  const auto before = verify(scene, room.chairs, start, grid_off);
+  const auto after = verify(scene, room.chairs, start, icp);
+  ASSERT_TRUE(before.has_value() && after.has_value());
+  ASSERT_EQ(after->object, before->object);
+  const Eigen::Vector2f truth(kChairX, kChairY);
+  const auto yaw_error = [](const Verification& v) { return std::abs(std::remainder(v.yaw - kChairYaw, 2 * static_cast<float>(M_PI))); };
+  EXPECT_GT((before->center.head<2>() - truth).norm(), 0.08f);
+  EXPECT_LT((after->center.head<2>() - truth).norm(), 0.03f);
+  EXPECT_LT(yaw_error(*after), 0.1f);
+  EXPECT_GT(after->fit(), before->fit() + 0.1f) << after->consistent << " of " << after->seen << " against "
+                                                << before->consistent << " of " << before->seen;
+}
+
 TEST(Verification, ShapesWhereTheSensorSeesTheWallAreSeenThrough) {
   const Room room = chairBeforeWall();
   const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
@@ -114,6 +142,35 @@ TEST(Verification, ThePartsAChairHidesSayNothing) {
   const auto open = verify(scene, room.chairs, chairAt(room, -1.2f, 0.8f, 0.0f));
   ASSERT_TRUE(behind.has_value() && open.has_value());
   EXPECT_LT(behind->seen, open->seen);
+}
+
+TEST(Verification, EachTermWeighsWhatTheSensorSawThroughOrNot) {
+  // Without free space, hidden pixels count against a shape as seen-through ones do; without
+  // inliers, they count for it as agreeing ones do. Where the sensor sees through the shape to
+  // the wall, every weighing finds it wrong. The pose search is off, so that each weighing
+  // judges the same pose.
+  const Room room = chairBeforeWall();
+  const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
+  const auto fitWith = [&](FitTerms terms, const Hypothesis& h) {
+    VerificationParams params;
+    params.coarse_yaws = 1;
+    params.coarse_steps = 0;
+    params.refined_poses = 1;
+    params.fine_yaw = 0;
+    params.fine_shift = 0;
+    params.fit_terms = terms;
+    const auto v = verify(scene, room.chairs, h, params);
+    EXPECT_TRUE(v.has_value());
+    return v ? v->fit() : 0.0f;
+  };
+  const Hypothesis behind = chairAt(room, kChairX + 0.05f, kChairY + 1.0f, kChairYaw);
+  const float both = fitWith(FitTerms::kBoth, behind);
+  EXPECT_LT(fitWith(FitTerms::kInliers, behind), 0.5f * both);
+  EXPECT_GT(fitWith(FitTerms::kFreeSpace, behind), both + 0.3f);
+  const Hypothesis open = chairAt(room, -1.2f, 0.8f, 0.0f);
+  for (const FitTerms terms : {FitTerms::kBoth, FitTerms::kInliers, FitTerms::kFreeSpace}) {
+    EXPECT_LT(fitWith(terms, open), 0.3f) << static_cast<int>(terms);
+  }
 }
 
 TEST(Verification, ASecondHypothesisOnTheSameChairIsItsDuplicate) {
@@ -233,6 +290,28 @@ TEST(Verification, AMapIsCheckedInThreeDimensions) {
   ASSERT_TRUE(wall.has_value() && open.has_value());
   EXPECT_LT(wall->fit(), fit->fit() - 0.2f) << wall->consistent << " of " << wall->seen;
   EXPECT_LT(open->fit(), 0.1f) << open->consistent << " of " << open->seen;
+}
+
+TEST(Verification, IcpAlignsInAMapToo) {
+  // In a map every shape point above the floor pairs with its nearest measured point.
+  const Room room = chairBeforeWall();
+  const VerificationScene scene = makeVerificationScene(fusedRoom(room), knownFloor());
+  ASSERT_TRUE(scene.map);
+  const Hypothesis start = chairAt(room, kChairX + 0.07f, kChairY - 0.06f, kChairYaw + 0.3f);
+  VerificationParams grid_off;
+  grid_off.coarse_yaws = 1;
+  grid_off.coarse_steps = 0;
+  grid_off.refined_poses = 1;
+  grid_off.fine_yaw = 0;
+  grid_off.fine_shift = 0;
+  VerificationParams icp = grid_off;
+  icp.icp_iterations = 10;
+  const auto before = verify(scene, room.chairs, start, grid_off);
+  const auto after = verify(scene, room.chairs, start, icp);
+  ASSERT_TRUE(before.has_value() && after.has_value());
+  const Eigen::Vector2f truth(kChairX, kChairY);
+  EXPECT_LT((after->center.head<2>() - truth).norm(), 0.5f * (before->center.head<2>() - truth).norm());
+  EXPECT_GT(after->fit(), before->fit());
 }
 
 TEST(Verification, AMapsHypothesisAtItsViewpointIsChecked) {

@@ -54,6 +54,9 @@ steps=(
   "table-top|=height-normalized|--preset default --no-footprint-prior|+ tables' boxes spanning the scene's table top, not their fitted shape"
   "footprint|=height-normalized|--preset default|+ tables whose top is deeper or shallower than every training table's rejected"
   "shape-profile||--preset default|+ the measured surface's profile over height and distance from the box's axis against the training shapes' in the confidence, but for flat-topped categories (the default)"
+  "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|the default without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
+  "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|the default without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
+  "icp|=shape-profile|--preset default --icp 8|the default with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
