@@ -222,25 +222,20 @@ struct ShapeBuffer {
   explicit ShapeBuffer(size_t size) : pixels(size) {}
 };
 
-// The front-most of the shape's first `points` points per pixel against the measured depth there.
-// Measured surface a better hypothesis of the category already explained counts neither way:
-// two overlapping hypotheses do not both take credit for one surface. With `explained`, the cells
-// of the agreeing points are added to it.
-Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
-                    ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr) {
-  const int n = std::min<int>(points, static_cast<int>(shape.size()));
+// The front-most of the shape's first n points at least min_height above the floor, per pixel of
+// the view: buffer.touched lists the pixels set.
+void fillShapeBuffer(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int n, const Pose& pose,
+                     float min_height, ShapeBuffer& buffer) {
   buffer.touched.clear();
   // The pose and the view in one affine map: the shape's points go straight into the view's axes.
-  const Eigen::Matrix3f turn = headingOf(pose);
-  const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
-  const Eigen::Matrix3f to_view = sv.view.axes * turn;
-  const Eigen::Vector3f view_offset = sv.view.axes * offset;
+  const Eigen::Matrix3f to_view = sv.view.axes * headingOf(pose);
+  const Eigen::Vector3f view_offset = sv.view.axes * Eigen::Vector3f(pose.xy.x(), pose.xy.y(), sv.floor_z);
   for (int i = 0; i < n; ++i) {
+    if (shape[static_cast<size_t>(i)].z() < min_height) continue;
     float z = 0;
     const int pixel = sv.view.project(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
     if (pixel < 0) continue;
-    const size_t p = static_cast<size_t>(pixel);
-    ShapeBuffer::Pixel& nearest = buffer.pixels[p];
+    ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
     if (nearest.index < 0) {
       buffer.touched.push_back(pixel);
       nearest = {z, i};
@@ -248,6 +243,18 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
       nearest = {z, i};
     }
   }
+}
+
+// The front-most of the shape's first `points` points per pixel against the measured depth there.
+// Measured surface a better hypothesis of the category already explained counts neither way:
+// two overlapping hypotheses do not both take credit for one surface. With `explained`, the cells
+// of the agreeing points are added to it.
+Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
+                    ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr) {
+  const int n = std::min<int>(points, static_cast<int>(shape.size()));
+  fillShapeBuffer(sv, shape, n, pose, -std::numeric_limits<float>::infinity(), buffer);
+  const Eigen::Matrix3f turn = headingOf(pose);
+  const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
   // The measured surface's cell is wanted only to check or record what a hypothesis explains.
   const bool check_claimed = !sv.claimed.empty();
   const bool cell_needed = check_claimed || explained != nullptr;
@@ -465,24 +472,7 @@ std::vector<int> visiblePoints(const VerificationScene& scene, const ShapeView& 
     }
     return out;
   }
-  buffer.touched.clear();
-  const Eigen::Matrix3f turn = headingOf(pose);
-  const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
-  const Eigen::Matrix3f to_view = sv.view.axes * turn;
-  const Eigen::Vector3f view_offset = sv.view.axes * offset;
-  for (int i = 0; i < n; ++i) {
-    if (shape[static_cast<size_t>(i)].z() < 0.05f) continue;  // on the floor
-    float z = 0;
-    const int pixel = sv.view.project(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
-    if (pixel < 0) continue;
-    ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
-    if (nearest.index < 0) {
-      buffer.touched.push_back(pixel);
-      nearest = {z, i};
-    } else if (z < nearest.z) {
-      nearest = {z, i};
-    }
-  }
+  fillShapeBuffer(sv, shape, n, pose, 0.05f, buffer);  // not on the floor
   for (const int pixel : buffer.touched) {
     ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
     const float measured = sv.view.depth[static_cast<size_t>(pixel)];

@@ -3,6 +3,8 @@
 #include "core/recognition/verification.h"
 
 #include <cmath>
+#include <optional>
+#include <utility>
 
 #include <gtest/gtest.h>
 
@@ -60,6 +62,19 @@ Hypothesis chairAt(const Room& room, float x, float y, float yaw) {
   return h;
 }
 
+// Verification without its pose search: one heading, no steps, so that the pose stays where the
+// hypothesis puts it (unless ICP moves it).
+VerificationParams gridOff() {
+  VerificationParams params;
+  params.coarse_yaws = 1;
+  params.coarse_steps = 0;
+  params.refined_poses = 1;
+  params.fine_yaw = 0;
+  params.fine_shift = 0;
+  params.icp_iterations = 0;
+  return params;
+}
+
 TEST(Verification, TheChairsOwnShapeFitsWhereItStands) {
   const Room room = chairBeforeWall();
   const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
@@ -96,23 +111,22 @@ TEST(Verification, RankingPosesOnFewerPointsFindsTheSamePose) {
   EXPECT_GT(b->seen, cheap.ranking_points) << "counted over max_points, not ranking_points";
 }
 
+// The chair's verification from 9 cm and 0.3 rad off, without the pose search: before and after
+// 10 steps of ICP.
+std::pair<std::optional<Verification>, std::optional<Verification>> icpFromOffset(const VerificationScene& scene,
+                                                                                  const Room& room) {
+  const Hypothesis start = chairAt(room, kChairX + 0.07f, kChairY - 0.06f, kChairYaw + 0.3f);
+  VerificationParams icp = gridOff();
+  icp.icp_iterations = 10;
+  return {verify(scene, room.chairs, start, gridOff()), verify(scene, room.chairs, start, icp)};
+}
+
 TEST(Verification, IcpBringsTheShapeOntoTheChair) {
   // The grid switched off (one heading, no steps): the pose stays where voting put it, 9 cm and
   // 0.3 rad off; ICP moves it onto the chair, and the chair then explains more of the shape.
   const Room room = chairBeforeWall();
   const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
-  const Hypothesis start = chairAt(room, kChairX + 0.07f, kChairY - 0.06f, kChairYaw + 0.3f);
-  VerificationParams grid_off;
-  grid_off.coarse_yaws = 1;
-  grid_off.coarse_steps = 0;
-  grid_off.refined_poses = 1;
-  grid_off.fine_yaw = 0;
-  grid_off.fine_shift = 0;
-  grid_off.icp_iterations = 0;
-  VerificationParams icp = grid_off;
-  icp.icp_iterations = 10;
-  const auto before = verify(scene, room.chairs, start, grid_off);
-  const auto after = verify(scene, room.chairs, start, icp);
+  const auto [before, after] = icpFromOffset(scene, room);
   ASSERT_TRUE(before.has_value() && after.has_value());
   ASSERT_EQ(after->object, before->object);
   const Eigen::Vector2f truth(kChairX, kChairY);
@@ -152,12 +166,7 @@ TEST(Verification, EachTermWeighsWhatTheSensorSawThroughOrNot) {
   const Room room = chairBeforeWall();
   const VerificationScene scene = makeVerificationScene(room.rendered.scene, knownFloor());
   const auto fitWith = [&](FitTerms terms, const Hypothesis& h) {
-    VerificationParams params;
-    params.coarse_yaws = 1;
-    params.coarse_steps = 0;
-    params.refined_poses = 1;
-    params.fine_yaw = 0;
-    params.fine_shift = 0;
+    VerificationParams params = gridOff();
     params.fit_terms = terms;
     const auto v = verify(scene, room.chairs, h, params);
     EXPECT_TRUE(v.has_value());
@@ -297,17 +306,7 @@ TEST(Verification, IcpAlignsInAMapToo) {
   const Room room = chairBeforeWall();
   const VerificationScene scene = makeVerificationScene(fusedRoom(room), knownFloor());
   ASSERT_TRUE(scene.map);
-  const Hypothesis start = chairAt(room, kChairX + 0.07f, kChairY - 0.06f, kChairYaw + 0.3f);
-  VerificationParams grid_off;
-  grid_off.coarse_yaws = 1;
-  grid_off.coarse_steps = 0;
-  grid_off.refined_poses = 1;
-  grid_off.fine_yaw = 0;
-  grid_off.fine_shift = 0;
-  VerificationParams icp = grid_off;
-  icp.icp_iterations = 10;
-  const auto before = verify(scene, room.chairs, start, grid_off);
-  const auto after = verify(scene, room.chairs, start, icp);
+  const auto [before, after] = icpFromOffset(scene, room);
   ASSERT_TRUE(before.has_value() && after.has_value());
   const Eigen::Vector2f truth(kChairX, kChairY);
   EXPECT_LT((after->center.head<2>() - truth).norm(), 0.5f * (before->center.head<2>() - truth).norm());
