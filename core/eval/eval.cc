@@ -65,6 +65,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.verification.fit_terms = recognition.fit_terms;
   options.top_extent.enabled = recognition.top_extent;
   options.top_extent.footprint_prior = recognition.footprint_prior;
+  options.top_extent.require_top = recognition.require_top;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -43,6 +43,7 @@ struct EvalRecognition {
   bool footprint_prior = true; // TopExtentParams::footprint_prior
   int icp_iterations = 0;      // VerificationParams::icp_iterations
   FitTerms fit_terms = FitTerms::kBoth;  // VerificationParams::fit_terms
+  bool require_top = true;     // TopExtentParams::require_top
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -34,14 +34,19 @@ struct TopExtentParams {
   // A top whose narrow side is outside the training shapes' narrow sides, give or take the priors'
   // slack, is dropped (withinFootprintPrior).
   bool footprint_prior = true;
+  // A verified hypothesis of a flat-topped category whose top the scene does not show (no layer of
+  // at least min_points measured points near the fitted top over its footprint) is dropped: a
+  // table is its top. false keeps it with its fitted shape's box (ism-eval --keep-topless).
+  bool require_top = true;
 };
 
 // Whether most of `category`'s training shapes are flat-topped (TopExtentParams::min_top_share).
 bool flatTopped(const CategoryModel& category, const TopExtentParams& params = {});
 
 // Replaces a verified, upright hypothesis' box by the extent of the scene's top surface there, from
-// the floor (or the box's bottom) to the top's height. Leaves it as it is where no top is found.
-void extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params = {});
+// the floor (or the box's bottom) to the top's height, and returns true. Leaves it as it is and
+// returns false where no top is found, or the hypothesis is not verified and upright.
+bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params = {});
 
 // The footprint prior of a flat-topped category: whether the narrow side of the hypothesis' upright
 // box (in the frame of `to_gravity`) lies within the narrow sides of the category's training

@@ -124,7 +124,11 @@ int main(int argc, char** argv) {
       ->default_str("both");
   bool no_top_extent = false;
   bool no_footprint_prior = false;
+  bool keep_topless = false;
   for (CLI::App* sub : {baseline, real}) {
+    sub->add_flag("--keep-topless", keep_topless,
+                  "default preset: keep tables whose top the scene does not show, with their fitted shapes' boxes "
+                  "(top_extent.h)");
     sub->add_flag("--no-top-extent", no_top_extent,
                   "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top "
                   "(top_extent.h)");
@@ -168,6 +172,7 @@ int main(int argc, char** argv) {
       ism::EvalRecognition recognition{ism::parseRecognitionPreset(preset), min_confidence};
       recognition.top_extent = !no_top_extent;
       recognition.footprint_prior = !no_footprint_prior;
+      recognition.require_top = !keep_topless;
       auto result = ism::runBaseline(split, training, recognition);
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
@@ -175,7 +180,7 @@ int main(int argc, char** argv) {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
-                            fit_terms};
+                            fit_terms, !keep_topless};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;
