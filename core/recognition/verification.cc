@@ -9,6 +9,7 @@
 #include <Eigen/Geometry>
 
 #include "core/common/upright_box.h"
+#include "core/frontend/neighbour_grid.h"
 #include "core/gravity/viewpoint.h"
 
 namespace ism {
@@ -149,14 +150,11 @@ class CellSet {
 };
 
 // A cube of the gravity frame, for the surface a hypothesis has explained.
-uint64_t packCell(const Eigen::Vector3i& c) {
+uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
+  const Eigen::Vector3i c = (p / edge).array().floor().cast<int>();
   return (static_cast<uint64_t>(static_cast<uint32_t>(c.x()) & 0x1fffff) << 42) |
          (static_cast<uint64_t>(static_cast<uint32_t>(c.y()) & 0x1fffff) << 21) |
          static_cast<uint64_t>(static_cast<uint32_t>(c.z()) & 0x1fffff);
-}
-
-uint64_t cellOf(const Eigen::Vector3f& p, float edge) {
-  return packCell((p / edge).array().floor().cast<int>());
 }
 
 // A shape point agrees with a map where a measured point lies in its cube of this edge or a
@@ -411,53 +409,17 @@ float profileDistanceAt(const VerificationScene& scene, const CategoryModel& cat
   return nearest;
 }
 
-// The measured points near a hypothesis, above the floor, binned in cubes of the ICP gate so that
-// the nearest one within the gate is among the 27 cubes around a query.
-class NearestPoints {
- public:
-  NearestPoints(const VerificationScene& scene, const Eigen::Vector3f& middle, float radius, float floor_z, float gate)
-      : gate_(gate) {
-    const float r2 = radius * radius;
-    std::vector<std::pair<uint64_t, int>> keyed;
-    for (size_t i = 0; i < scene.points.size(); ++i) {
-      const Eigen::Vector3f& p = scene.points[i];
-      if ((p - middle).squaredNorm() > r2 || p.z() < floor_z + 0.03f) continue;
-      keyed.emplace_back(cellOf(p, gate_), static_cast<int>(i));
-    }
-    std::sort(keyed.begin(), keyed.end());
-    keys_.reserve(keyed.size());
-    points_.reserve(keyed.size());
-    for (const auto& [key, i] : keyed) {
-      keys_.push_back(key);
-      points_.push_back(scene.points[static_cast<size_t>(i)]);
-    }
-  }
+// The measured points near a hypothesis, above the floor, for ICP's nearest-point pairing.
+struct NearbyMeasured {
+  std::vector<Eigen::Vector3f> points;
+  NeighbourGrid grid;  // over `points`, cells of the ICP gate
 
-  // The nearest point to q within the gate, or nothing.
-  const Eigen::Vector3f* nearest(const Eigen::Vector3f& q) const {
-    const Eigen::Vector3i c = (q / gate_).array().floor().cast<int>();
-    const Eigen::Vector3f* best = nullptr;
-    float best_d2 = gate_ * gate_;
-    for (int dx = -1; dx <= 1; ++dx) {
-      for (int dy = -1; dy <= 1; ++dy) {
-        for (int dz = -1; dz <= 1; ++dz) {
-          const uint64_t key = packCell(c + Eigen::Vector3i(dx, dy, dz));
-          auto it = std::lower_bound(keys_.begin(), keys_.end(), key);
-          for (; it != keys_.end() && *it == key; ++it) {
-            const Eigen::Vector3f& p = points_[static_cast<size_t>(it - keys_.begin())];
-            const float d2 = (p - q).squaredNorm();
-            if (d2 < best_d2) best_d2 = d2, best = &p;
-          }
-        }
-      }
+  NearbyMeasured(const VerificationScene& scene, const Eigen::Vector3f& middle, float radius, float floor_z, float gate) {
+    for (const auto& p : scene.points) {
+      if ((p - middle).squaredNorm() <= radius * radius && p.z() >= floor_z + 0.03f) points.push_back(p);
     }
-    return best;
+    if (!points.empty()) grid = NeighbourGrid(points, gate);
   }
-
- private:
-  float gate_;
-  std::vector<uint64_t> keys_;
-  std::vector<Eigen::Vector3f> points_;
 };
 
 // The shape points of `pose` the sensor would see: front-most in their pixel, and not behind a
@@ -486,10 +448,11 @@ std::vector<int> visiblePoints(const VerificationScene& scene, const ShapeView& 
 // measured points, the turn about up and the shift along the floor that bring the pairs' horizontal
 // positions closest (the 2D Procrustes solution), until a step moves the pose by under a
 // millimetre and a tenth of a degree. Nothing when too few points pair up.
-std::optional<Pose> alignByIcp(const VerificationScene& scene, const ShapeView& sv, const NearestPoints& measured,
+std::optional<Pose> alignByIcp(const VerificationScene& scene, const ShapeView& sv, const NearbyMeasured& measured,
                                const std::vector<Eigen::Vector3f>& shape, const Pose& start,
                                const VerificationParams& params, ShapeBuffer& buffer) {
   constexpr size_t kMinPairs = 20;
+  if (measured.points.size() < kMinPairs) return std::nullopt;
   Pose pose = start;
   bool moved = false;
   for (int iteration = 0; iteration < params.icp_iterations; ++iteration) {
@@ -500,7 +463,8 @@ std::optional<Pose> alignByIcp(const VerificationScene& scene, const ShapeView& 
     pairs.reserve(visible.size());
     for (const int i : visible) {
       const Eigen::Vector3f p = turn * shape[static_cast<size_t>(i)] + offset;
-      if (const Eigen::Vector3f* q = measured.nearest(p)) pairs.emplace_back(p.head<2>(), q->head<2>());
+      const int q = measured.grid.nearest(p, params.icp_gate);
+      if (q >= 0) pairs.emplace_back(p.head<2>(), measured.points[static_cast<size_t>(q)].head<2>());
     }
     if (pairs.size() < kMinPairs) break;
     Eigen::Vector2f a_mean = Eigen::Vector2f::Zero(), b_mean = Eigen::Vector2f::Zero();
@@ -595,7 +559,7 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   }
   if (params.icp_iterations > 0) {
     const std::vector<Eigen::Vector3f>& shape = category.objects[static_cast<size_t>(best_pose.object)].surface;
-    const NearestPoints measured(scene, middle, radius, floor_z, params.icp_gate);
+    const NearbyMeasured measured(scene, middle, radius, floor_z, params.icp_gate);
     if (const std::optional<Pose> aligned = alignByIcp(scene, sv, measured, shape, best_pose, params, scratch)) {
       if (poseAgreement(scene, sv, shape, params.ranking_points, *aligned, scratch).rank() > best_rank) best_pose = *aligned;
     }
