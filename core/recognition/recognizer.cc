@@ -217,9 +217,8 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
       h.confidence = plan.confidence[s](h);
       if (h.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
       if (flat) {
-        const bool looked = h.verification && h.upright_box;
-        const bool topped = extendToTop(view, h, options.top_extent);
-        if ((options.top_extent.require_top && looked && !topped) ||
+        const TopFound top = extendToTop(view, h, options.top_extent);
+        if ((options.top_extent.require_top && top == TopFound::kMissing) ||
             (options.top_extent.footprint_prior &&
              !withinFootprintPrior(h, category, to_gravity, priorSlack(model, category)))) {
           h.passed_selection = false;

@@ -109,8 +109,8 @@ bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& cat
                              narrow(uprightBoxOf(hypothesis.box, to_gravity).size), slack);
 }
 
-bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
-  if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return false;
+TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
+  if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return TopFound::kNotLooked;
   const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
   const Eigen::Vector3f sensor = scene.to_gravity * scene.origin;
   const Eigen::Vector3f centre = box.center - sensor;  // scene.points' frame
@@ -131,9 +131,9 @@ bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const T
     ++layers[std::min(layers.size() - 1, static_cast<size_t>(z / kBin))];
   }
   const auto densest = std::max_element(layers.begin(), layers.end());
-  if (*densest < params.min_points) return false;
+  if (*densest < params.min_points) return TopFound::kMissing;
   const float top = from + (static_cast<float>(densest - layers.begin()) + 0.5f) * kBin;
-  if (top <= bottom + 2 * params.layer) return false;
+  if (top <= bottom + 2 * params.layer) return TopFound::kMissing;
 
   // The measured points at that height, on a grid about the fitted box.
   const int n = std::max(3, static_cast<int>(std::ceil(params.max_side / params.cell)));
@@ -163,7 +163,7 @@ bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const T
       }
     }
   }
-  if (frontier.empty()) return false;
+  if (frontier.empty()) return TopFound::kMissing;
   while (!frontier.empty()) {
     const auto [x, y] = frontier.back();
     frontier.pop_back();
@@ -184,7 +184,7 @@ bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const T
     int x = 0, y = 0;
     if (reached.cellOf(p, x, y) && reached.at(x, y)) top_points.push_back(p);
   }
-  if (top_points.empty()) return false;
+  if (top_points.empty()) return TopFound::kMissing;
   std::vector<float> yaws{box.yaw};
   if (top_points.size() >= 3) {
     Eigen::Vector2f mean = Eigen::Vector2f::Zero();
@@ -207,7 +207,7 @@ bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const T
   extent.size = {sides.x(), sides.y(), top - bottom};
   extent.yaw = yaw;
   hypothesis.box = extent.toScene(scene.to_gravity);
-  return true;
+  return TopFound::kFound;
 }
 
 }  // namespace ism

@@ -43,10 +43,14 @@ struct TopExtentParams {
 // Whether most of `category`'s training shapes are flat-topped (TopExtentParams::min_top_share).
 bool flatTopped(const CategoryModel& category, const TopExtentParams& params = {});
 
+// What extendToTop found: it did not look (the hypothesis is not verified and upright, or the step
+// is off), it looked and the scene shows no top there, or it found the top and boxed it.
+enum class TopFound { kNotLooked, kMissing, kFound };
+
 // Replaces a verified, upright hypothesis' box by the extent of the scene's top surface there, from
-// the floor (or the box's bottom) to the top's height, and returns true. Leaves it as it is and
-// returns false where no top is found, or the hypothesis is not verified and upright.
-bool extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params = {});
+// the floor (or the box's bottom) to the top's height. Leaves it as it is where no top is found,
+// or where it does not look.
+TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params = {});
 
 // The footprint prior of a flat-topped category: whether the narrow side of the hypothesis' upright
 // box (in the frame of `to_gravity`) lies within the narrow sides of the category's training

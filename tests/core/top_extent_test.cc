@@ -75,7 +75,7 @@ TEST(TopExtent, TheBoxSpansTheWholeTopAndNothingBesideIt) {
       scene = sample;
     }
     Hypothesis h = leftEnd();
-    EXPECT_TRUE(extendToTop(makeVerificationScene(scene, knownFloor()), h)) << "sparse " << sparse;
+    EXPECT_EQ(extendToTop(makeVerificationScene(scene, knownFloor()), h), TopFound::kFound) << "sparse " << sparse;
     const UprightBox box = uprightBoxOf(h.box, Eigen::Matrix3f::Identity());
     // The 2.4 m top within a cell of the grid on each side; neither the chair behind it nor the
     // cabinet of the same height 0.3 m off its end joins it.
@@ -95,7 +95,7 @@ TEST(TopExtent, WithoutATopTheFittedShapeStays) {
   box.center.x() = -2.6f;  // over bare floor, left of the desk
   h.box = box.toScene(Eigen::Matrix3f::Identity());
   const OrientedBox before = h.box;
-  EXPECT_FALSE(extendToTop(makeVerificationScene(office().scene, knownFloor()), h))
+  EXPECT_EQ(extendToTop(makeVerificationScene(office().scene, knownFloor()), h), TopFound::kMissing)
       << "no top: recognition drops such a table (TopExtentParams::require_top)";
   EXPECT_TRUE(h.box.center.isApprox(before.center));
   EXPECT_TRUE(h.box.size.isApprox(before.size));
@@ -103,12 +103,12 @@ TEST(TopExtent, WithoutATopTheFittedShapeStays) {
   Hypothesis unverified = leftEnd();
   unverified.verification.reset();
   const OrientedBox fitted = unverified.box;
-  EXPECT_FALSE(extendToTop(makeVerificationScene(office().scene, knownFloor()), unverified));
+  EXPECT_EQ(extendToTop(makeVerificationScene(office().scene, knownFloor()), unverified), TopFound::kNotLooked);
   EXPECT_TRUE(unverified.box.size.isApprox(fitted.size));
   Hypothesis off = leftEnd();
   TopExtentParams params;
   params.enabled = false;
-  extendToTop(makeVerificationScene(office().scene, knownFloor()), off, params);
+  EXPECT_EQ(extendToTop(makeVerificationScene(office().scene, knownFloor()), off, params), TopFound::kNotLooked);
   EXPECT_TRUE(off.box.size.isApprox(fitted.size));
 }
 
