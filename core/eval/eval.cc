@@ -66,6 +66,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.top_extent.enabled = recognition.top_extent;
   options.top_extent.footprint_prior = recognition.footprint_prior;
   options.top_extent.require_top = recognition.require_top;
+  options.seat_run.enabled = recognition.seat_run;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -44,6 +44,7 @@ struct EvalRecognition {
   int icp_iterations = 0;      // VerificationParams::icp_iterations
   FitTerms fit_terms = FitTerms::kBoth;  // VerificationParams::fit_terms
   bool require_top = true;     // TopExtentParams::require_top
+  bool seat_run = true;        // SeatRunParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -195,7 +195,7 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 // scene, and their confidences made again with the fit. A hypothesis whose agreeing surface is
 // mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
 // table's box becomes its measured top, and one outside the footprint prior goes to
-// result.rejected.
+// result.rejected, as does any other whose seat-height run is short (seat_run.h).
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
@@ -225,6 +225,10 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
           result.rejected.push_back(std::move(h));
           continue;
         }
+      } else if (checkSeatRun(view, h, category, options.seat_run).tooShort()) {
+        h.passed_selection = false;
+        result.rejected.push_back(std::move(h));
+        continue;
       }
       verified.push_back(std::move(h));
     }

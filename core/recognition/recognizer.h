@@ -17,6 +17,7 @@
 #include "core/recognition/box_selection.h"
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
+#include "core/recognition/seat_run.h"
 #include "core/recognition/suppression.h"
 #include "core/recognition/top_extent.h"
 #include "core/recognition/verification.h"
@@ -59,6 +60,10 @@ struct RecognitionOptions {
   // scene's top surface there rather than the fitted shape, and a top deeper or shallower than
   // the training tables' is rejected (top_extent.h).
   TopExtentParams top_extent;
+  // Default preset, verified hypotheses of the other categories: one whose measured surface at seat
+  // height runs along its long side less than half as far as its category's shortest training
+  // shape's is rejected (seat_run.h).
+  SeatRunParams seat_run;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)

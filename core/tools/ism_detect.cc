@@ -67,6 +67,10 @@ int main(int argc, char** argv) {
   bool no_top_extent = false;
   app.add_flag("--no-top-extent", no_top_extent,
                "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top");
+  bool no_seat_run = false;
+  app.add_flag("--no-seat-run", no_seat_run,
+               "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far "
+               "as their category's shortest training shape's");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -102,6 +106,7 @@ int main(int argc, char** argv) {
     options.box_selection = !no_box_selection;
     options.verify = !no_verify;
     options.top_extent.enabled = !no_top_extent;
+    options.seat_run.enabled = !no_seat_run;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 

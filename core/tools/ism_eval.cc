@@ -125,7 +125,11 @@ int main(int argc, char** argv) {
   bool no_top_extent = false;
   bool no_footprint_prior = false;
   bool keep_topless = false;
+  bool no_seat_run = false;
   for (CLI::App* sub : {baseline, real}) {
+    sub->add_flag("--no-seat-run", no_seat_run,
+                  "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far as "
+                  "their category's shortest training shape's (seat_run.h)");
     sub->add_flag("--keep-topless", keep_topless,
                   "default preset: keep tables whose top the scene does not show, with their fitted shapes' boxes "
                   "(top_extent.h)");
@@ -173,6 +177,7 @@ int main(int argc, char** argv) {
       recognition.top_extent = !no_top_extent;
       recognition.footprint_prior = !no_footprint_prior;
       recognition.require_top = !keep_topless;
+      recognition.seat_run = !no_seat_run;
       auto result = ism::runBaseline(split, training, recognition);
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
@@ -180,7 +185,7 @@ int main(int argc, char** argv) {
       ism::RealEvalParams params;
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
-                            fit_terms, !keep_topless};
+                            fit_terms, !keep_topless, !no_seat_run};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

@@ -12,6 +12,7 @@
 #include "core/scanner/scanner.h"
 #include "tests/common/known_gravity.h"
 #include "tests/common/synthetic_furniture.h"
+#include "tests/common/verified_hypothesis.h"
 
 namespace ism {
 namespace {
@@ -51,12 +52,7 @@ Hypothesis leftEnd() {
   box.size = {1.2f, 0.8f, 0.74f};
   box.center = {-0.55f, 0.02f, box.size.z() / 2};
   box.yaw = 0.05f;
-  Hypothesis h;
-  h.category = "dining_table";
-  h.box = box.toScene(Eigen::Matrix3f::Identity());
-  h.upright_box = true;
-  h.verification = Verification{};
-  return h;
+  return testing::verifiedHypothesis("dining_table", box);
 }
 
 TEST(TopExtent, TheBoxSpansTheWholeTopAndNothingBesideIt) {
