@@ -67,6 +67,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.top_extent.footprint_prior = recognition.footprint_prior;
   options.top_extent.require_top = recognition.require_top;
   options.seat_run.enabled = recognition.seat_run;
+  options.open_top.enabled = recognition.open_top;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

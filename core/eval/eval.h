@@ -45,6 +45,7 @@ struct EvalRecognition {
   FitTerms fit_terms = FitTerms::kBoth;  // VerificationParams::fit_terms
   bool require_top = true;     // TopExtentParams::require_top
   bool seat_run = true;        // SeatRunParams::enabled
+  bool open_top = true;        // OpenTopParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

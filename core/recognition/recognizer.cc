@@ -195,7 +195,8 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 // scene, and their confidences made again with the fit. A hypothesis whose agreeing surface is
 // mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
 // table's box becomes its measured top, and one outside the footprint prior goes to
-// result.rejected, as does any other whose seat-height run is short (seat_run.h).
+// result.rejected, as does any other whose seat-height run is short (seat_run.h) or over whose top
+// the scene goes on (open_top.h).
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
@@ -225,7 +226,8 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
           result.rejected.push_back(std::move(h));
           continue;
         }
-      } else if (checkSeatRun(view, h, category, options.seat_run).tooShort()) {
+      } else if (checkSeatRun(view, h, category, options.seat_run).tooShort() ||
+                 checkOpenTop(view, h, options.open_top).covered(options.open_top)) {
         h.passed_selection = false;
         result.rejected.push_back(std::move(h));
         continue;

@@ -17,6 +17,7 @@
 #include "core/recognition/box_selection.h"
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
+#include "core/recognition/open_top.h"
 #include "core/recognition/seat_run.h"
 #include "core/recognition/suppression.h"
 #include "core/recognition/top_extent.h"
@@ -64,6 +65,9 @@ struct RecognitionOptions {
   // height runs along its long side less than half as far as its category's shortest training
   // shape's is rejected (seat_run.h).
   SeatRunParams seat_run;
+  // Default preset, the same hypotheses: one with measured surface standing over its top, more than
+  // a fifth of the points over its inner footprint, is rejected (open_top.h).
+  OpenTopParams open_top;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)

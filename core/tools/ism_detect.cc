@@ -71,6 +71,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-seat-run", no_seat_run,
                "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far "
                "as their category's shortest training shape's");
+  bool no_open_top = false;
+  app.add_flag("--no-open-top", no_open_top,
+               "default preset: keep chairs and couches with measured surface standing over their top");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -107,6 +110,7 @@ int main(int argc, char** argv) {
     options.verify = !no_verify;
     options.top_extent.enabled = !no_top_extent;
     options.seat_run.enabled = !no_seat_run;
+    options.open_top.enabled = !no_open_top;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 
