@@ -1,27 +1,19 @@
 #include "core/recognition/open_top.h"
 
-#include <cmath>
-
-#include "core/common/upright_box.h"
-
 namespace ism {
 
 OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params) {
   OpenTopCheck check;
   if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return check;
-  const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
-  const Eigen::Vector3f centre = box.center - scene.to_gravity * scene.origin;  // scene.points' frame
-  const float floor_z = scene.floor_z.value_or(centre.z() - box.size.z() / 2);
-  const float top = centre.z() + box.size.z() / 2;
-  const float c = std::cos(box.yaw), s = std::sin(box.yaw);
-  const Eigen::Vector2f half = params.inner * box.size.head<2>() / 2;
+  const SceneBox local = sceneBox(scene, hypothesis);
+  const float top = local.top();
   check.looked = true;
+  check.max_share = params.max_share;
   for (const auto& p : scene.points) {
-    const float dx = p.x() - centre.x(), dy = p.y() - centre.y();
-    if (std::abs(c * dx + s * dy) > half.x() || std::abs(-s * dx + c * dy) > half.y()) continue;
+    if (!local.overFootprint(p, params.inner)) continue;
     if (p.z() > top + params.from && p.z() < top + params.to) {
       ++check.above;
-    } else if (p.z() > floor_z + params.body_from && p.z() < top) {
+    } else if (p.z() > local.floor_z + params.body_from && p.z() < top) {
       ++check.body;
     }
   }

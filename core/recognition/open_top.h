@@ -27,8 +27,9 @@ struct OpenTopParams {
 struct OpenTopCheck {
   bool looked = false;  // verified, upright and enabled
   int above = 0, body = 0;
+  float max_share = 0;  // OpenTopParams::max_share
   float share() const { return above + body > 0 ? static_cast<float>(above) / static_cast<float>(above + body) : 0.0f; }
-  bool covered(const OpenTopParams& params = {}) const { return looked && share() > params.max_share; }
+  bool covered() const { return looked && share() > max_share; }
 };
 
 OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params = {});

@@ -227,7 +227,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
           continue;
         }
       } else if (checkSeatRun(view, h, category, options.seat_run).tooShort() ||
-                 checkOpenTop(view, h, options.open_top).covered(options.open_top)) {
+                 checkOpenTop(view, h, options.open_top).covered()) {
         h.passed_selection = false;
         result.rejected.push_back(std::move(h));
         continue;

@@ -5,8 +5,6 @@
 #include <limits>
 #include <vector>
 
-#include "core/common/upright_box.h"
-
 namespace ism {
 
 float seatRun(const std::vector<Eigen::Vector3f>& points, const Eigen::Vector2f& centre, const Eigen::Vector2f& axis,
@@ -73,12 +71,10 @@ SeatRunCheck checkSeatRun(const VerificationScene& scene, const Hypothesis& hypo
   if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return check;
   const std::optional<float> training = trainingSeatRun(category, params);
   if (!training) return check;
-  const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
-  const Eigen::Vector3f centre = box.center - scene.to_gravity * scene.origin;  // scene.points' frame
-  const float floor_z = scene.floor_z.value_or(centre.z() - box.size.z() / 2);
-  const auto [axis, half_width] = longSide(box.size, box.yaw);
+  const SceneBox local = sceneBox(scene, hypothesis);
+  const auto [axis, half_width] = longSide(local.box.size, local.box.yaw);
   check.looked = true;
-  check.run = seatRun(scene.points, centre.head<2>(), axis, half_width, floor_z, params);
+  check.run = seatRun(scene.points, local.box.center.head<2>(), axis, half_width, local.floor_z, params);
   check.required = params.min_share * *training;
   return check;
 }

@@ -111,16 +111,13 @@ bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& cat
 
 TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
   if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return TopFound::kNotLooked;
-  const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
+  const SceneBox local = sceneBox(scene, hypothesis);
+  const UprightBox& box = local.box;
   const Eigen::Vector3f sensor = scene.to_gravity * scene.origin;
-  const Eigen::Vector3f centre = box.center - sensor;  // scene.points' frame
-  const float bottom = scene.floor_z.value_or(centre.z() - box.size.z() / 2);
-  const float fitted_top = centre.z() + box.size.z() / 2;
-  const float c = std::cos(box.yaw), s = std::sin(box.yaw);
-  const auto in_footprint = [&](const Eigen::Vector3f& p) {
-    const float dx = p.x() - centre.x(), dy = p.y() - centre.y();
-    return std::abs(c * dx + s * dy) <= box.size.x() / 2 && std::abs(-s * dx + c * dy) <= box.size.y() / 2;
-  };
+  const Eigen::Vector3f& centre = box.center;  // scene.points' frame
+  const float bottom = local.floor_z;
+  const float fitted_top = local.top();
+  const auto in_footprint = [&](const Eigen::Vector3f& p) { return local.overFootprint(p); };
 
   // The top's height: the densest thin layer over the fitted footprint near the fitted top.
   const float from = fitted_top - params.below;

@@ -336,6 +336,16 @@ bool NearGrid::contains(const Eigen::Vector3f& p) const {
   return (bits_[i / 64] >> (i % 64)) & 1u;
 }
 
+SceneBox sceneBox(const VerificationScene& scene, const Hypothesis& hypothesis) {
+  SceneBox local;
+  local.box = uprightBoxOf(hypothesis.box, scene.to_gravity);
+  local.box.center -= scene.to_gravity * scene.origin;
+  local.floor_z = scene.floor_z.value_or(local.box.center.z() - local.box.size.z() / 2);
+  local.cos_yaw = std::cos(local.box.yaw);
+  local.sin_yaw = std::sin(local.box.yaw);
+  return local;
+}
+
 VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
                                         const VerificationParams& params) {
   VerificationScene out;
@@ -501,9 +511,10 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
                                    const Hypothesis& hypothesis, const VerificationParams& params,
                                    const std::unordered_set<uint64_t>* claimed, std::unordered_set<uint64_t>* explained) {
   if (!hasShapes(category)) return std::nullopt;
-  const UprightBox box = uprightBoxOf(hypothesis.box, scene.to_gravity);
-  const Eigen::Vector3f center = box.center - scene.to_gravity * scene.origin;
-  const float floor_z = scene.floor_z.value_or(center.z() - box.size.z() / 2);
+  const SceneBox local = sceneBox(scene, hypothesis);
+  const UprightBox& box = local.box;
+  const Eigen::Vector3f& center = box.center;
+  const float floor_z = local.floor_z;
   float reach = 0, height = 0, side = 0;  // the farthest any shape reaches from its middle; the tallest; the longest
   for (const auto& o : category.objects) {
     if (o.surface.empty()) continue;

@@ -12,6 +12,7 @@
 // free-space term), done per hypothesis on a depth buffer instead of jointly, with a pose search
 // in the gravity frame (furniture only turns about up) and then ICP under the same constraint.
 #include <array>
+#include <cmath>
 #include <cstdint>
 #include <optional>
 #include <unordered_set>
@@ -21,6 +22,7 @@
 
 #include "core/common/gravity_frame.h"
 #include "core/common/types.h"
+#include "core/common/upright_box.h"
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 
@@ -132,6 +134,25 @@ struct VerificationScene {
 
 VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
                                         const VerificationParams& params = {});
+
+// A hypothesis' upright box where the scene's checks read it: its centre relative to the sensor in
+// the gravity frame, as VerificationScene::points are, and the floor's height there (the scene's
+// floor, else the box's bottom).
+struct SceneBox {
+  UprightBox box;
+  float floor_z = 0;
+  float cos_yaw = 1, sin_yaw = 0;
+  float top() const { return box.center.z() + box.size.z() / 2; }
+  // Whether `p` (VerificationScene::points' frame) lies over the footprint, its sides shrunk to
+  // `share` of theirs.
+  bool overFootprint(const Eigen::Vector3f& p, float share = 1.0f) const {
+    const float dx = p.x() - box.center.x(), dy = p.y() - box.center.y();
+    return std::abs(cos_yaw * dx + sin_yaw * dy) <= share * box.size.x() / 2 &&
+           std::abs(-sin_yaw * dx + cos_yaw * dy) <= share * box.size.y() / 2;
+  }
+};
+
+SceneBox sceneBox(const VerificationScene& scene, const Hypothesis& hypothesis);
 
 // Whether `category` keeps training shapes to verify with. Objects without a surface are not
 // tried (calibration holds out the shapes of the objects its rooms show).

@@ -65,7 +65,7 @@ TEST(OpenTop, NothingMayStandOverAChair) {
   // Surface higher than `to` over the top is not looked at: a chair under a high shelf.
   OpenTopParams low;
   low.to = 0.25f;
-  EXPECT_FALSE(checkOpenTop(view, chairAt(1.0f), low).covered(low));
+  EXPECT_FALSE(checkOpenTop(view, chairAt(1.0f), low).covered());
 
   // Not looked at: unverified, or switched off.
   Hypothesis unverified = chairAt(1.0f);
@@ -73,7 +73,7 @@ TEST(OpenTop, NothingMayStandOverAChair) {
   EXPECT_FALSE(checkOpenTop(view, unverified).looked);
   OpenTopParams off;
   off.enabled = false;
-  EXPECT_FALSE(checkOpenTop(view, chairAt(1.0f), off).covered(off));
+  EXPECT_FALSE(checkOpenTop(view, chairAt(1.0f), off).covered());
 }
 
 }  // namespace
