@@ -1,8 +1,7 @@
 #pragma once
 // An open top: nothing stands over a chair or a couch. People sit on them and lean on their
 // backrests, so the space just above a seat's top is free, while voting also puts chairs and couches
-// into shelves, under counters with wall cabinets above, beside nightstands with lamps on them and
-// into the lower half of wardrobes, where the scene goes on above the box. Each verified, upright
+// into and under taller furniture, where the scene goes on above the box. Each verified, upright
 // hypothesis of a category that is not flat-topped (things stand on tables) counts the measured
 // points over the inner part of its footprint: those from 0.1 to 0.6 m above its top against those
 // in its body, from 0.1 m above the floor to its top. It is dropped when the share above exceeds
