@@ -1,8 +1,8 @@
 #pragma once
 // A seat's run: how far the measured surface at seat height runs along a hypothesis' long side.
 // A couch is long at seat height, a chair as wide as its seat, and so are the category's
-// training shapes. Voting also puts couches on armchairs and in front of walls, and chairs on
-// empty floor before a cabinet: there the scene shows much less than the shortest training shape
+// training shapes. Voting also puts couches on armchairs and chairs on sofas, and boxes over floor
+// with nothing at seat height: there the scene shows much less than the shortest training shape
 // at that height, or nothing at all under the box's middle. Each verified, upright hypothesis of a
 // category that is not flat-topped (tables have their top, top_extent.h) is measured along its
 // long side through its middle, within its depth, in a band of heights above the floor, and
