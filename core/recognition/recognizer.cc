@@ -213,6 +213,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     verifyHypotheses(view, model, own, options.verification, options.should_stop);
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
     const bool flat = options.top_extent.enabled && flatTopped(category, options.top_extent);
+    const std::optional<float> training_run = flat ? std::nullopt : trainingSeatRun(category, options.seat_run);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
@@ -226,7 +227,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
           result.rejected.push_back(std::move(h));
           continue;
         }
-      } else if (checkSeatRun(view, h, category, options.seat_run).tooShort() ||
+      } else if (checkSeatRun(view, h, training_run, options.seat_run).tooShort() ||
                  checkOpenTop(view, h, options.open_top).covered()) {
         h.passed_selection = false;
         result.rejected.push_back(std::move(h));

@@ -65,17 +65,15 @@ std::optional<float> trainingSeatRun(const CategoryModel& category, const SeatRu
   return shortest;
 }
 
-SeatRunCheck checkSeatRun(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
-                          const SeatRunParams& params) {
+SeatRunCheck checkSeatRun(const VerificationScene& scene, const Hypothesis& hypothesis,
+                          const std::optional<float>& training_run, const SeatRunParams& params) {
   SeatRunCheck check;
-  if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return check;
-  const std::optional<float> training = trainingSeatRun(category, params);
-  if (!training) return check;
+  if (!params.enabled || !training_run || !hypothesis.upright_box || !hypothesis.verification) return check;
   const SceneBox local = sceneBox(scene, hypothesis);
   const auto [axis, half_width] = longSide(local.box.size, local.box.yaw);
   check.looked = true;
   check.run = seatRun(scene.points, local.box.center.head<2>(), axis, half_width, local.floor_z, params);
-  check.required = params.min_share * *training;
+  check.required = params.min_share * *training_run;
   return check;
 }
 

@@ -49,8 +49,9 @@ struct SeatRunCheck {
   bool tooShort() const { return looked && run < required; }
 };
 
-// The hypothesis' run in the scene against its category's.
-SeatRunCheck checkSeatRun(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
-                          const SeatRunParams& params = {});
+// The hypothesis' run in the scene against its category's `training_run` (trainingSeatRun, made
+// once per category; nothing: not looked at).
+SeatRunCheck checkSeatRun(const VerificationScene& scene, const Hypothesis& hypothesis,
+                          const std::optional<float>& training_run, const SeatRunParams& params = {});
 
 }  // namespace ism

@@ -94,25 +94,25 @@ TEST(SeatRun, ACouchNeedsHalfTheShortestTrainingCouchsLength) {
   const CategoryModel category = couchCategory();
   ASSERT_NEAR(trainingSeatRun(category).value_or(0), 2.2f, 0.15f) << "within a cell";
 
-  const SeatRunCheck two_seater = checkSeatRun(scene, couchAt(-1.2f, 0), category);
+  const SeatRunCheck two_seater = checkSeatRun(scene, couchAt(-1.2f, 0), trainingSeatRun(category));
   EXPECT_TRUE(two_seater.looked);
   EXPECT_NEAR(two_seater.run, 1.6f, 0.25f) << "within a cell at each end";
   EXPECT_NEAR(two_seater.required, 1.1f, 0.1f) << "half the training couch's 2.2 m";
   EXPECT_FALSE(two_seater.tooShort());
 
-  const SeatRunCheck armchair = checkSeatRun(scene, couchAt(1.2f, 0), category);
+  const SeatRunCheck armchair = checkSeatRun(scene, couchAt(1.2f, 0), trainingSeatRun(category));
   EXPECT_NEAR(armchair.run, 0.7f, 0.25f);
   EXPECT_TRUE(armchair.tooShort()) << "a couch on an armchair";
-  EXPECT_TRUE(checkSeatRun(scene, couchAt(0.0f, -1.5f), category).tooShort()) << "a couch on bare floor";
+  EXPECT_TRUE(checkSeatRun(scene, couchAt(0.0f, -1.5f), trainingSeatRun(category)).tooShort()) << "a couch on bare floor";
 
   // Not looked at: unverified, switched off, or a category without shapes.
   Hypothesis unverified = couchAt(1.2f, 0);
   unverified.verification.reset();
-  EXPECT_FALSE(checkSeatRun(scene, unverified, category).looked);
+  EXPECT_FALSE(checkSeatRun(scene, unverified, trainingSeatRun(category)).looked);
   SeatRunParams off;
   off.enabled = false;
-  EXPECT_FALSE(checkSeatRun(scene, couchAt(1.2f, 0), category, off).tooShort());
-  EXPECT_FALSE(checkSeatRun(scene, couchAt(1.2f, 0), CategoryModel{}).looked);
+  EXPECT_FALSE(checkSeatRun(scene, couchAt(1.2f, 0), trainingSeatRun(category), off).tooShort());
+  EXPECT_FALSE(checkSeatRun(scene, couchAt(1.2f, 0), trainingSeatRun(CategoryModel{})).looked);
 }
 
 }  // namespace
