@@ -3,10 +3,12 @@
 #include "core/common/version.h"
 
 #include <algorithm>
+#include <cmath>
 #include <chrono>
 #include <ctime>
 #include <map>
 #include <mutex>
+#include <unordered_map>
 #include <sstream>
 
 #ifdef _OPENMP
@@ -54,6 +56,34 @@ DescriptorMatrix stackDescriptors(const std::vector<const TrainingScan*>& scans)
     at += s->features.descriptors.rows();
   }
   return all;
+}
+
+// Views of one mesh fused into a map (TrainingParams::fused): their points (already cropped to the
+// object's footprint widened by the margin) averaged per params.spacing cube, as a TSDF averages
+// the views' noise, no image grid, seen from `viewpoint`.
+Scene fusedScan(const std::vector<Eigen::Vector3f>& all, const Eigen::Vector3f& viewpoint,
+                const TrainingParams::FusedScanParams& params, const std::string& source) {
+  std::unordered_map<uint64_t, std::pair<Eigen::Vector3f, int>> cells;
+  const auto cell = [&](float x) {
+    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x / params.spacing)) + (1 << 20));
+  };
+  for (const auto& p : all) {
+    auto& c = cells.try_emplace((cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z()), Eigen::Vector3f::Zero(), 0)
+                  .first->second;
+    c.first += p;
+    ++c.second;
+  }
+  Scene scene;
+  scene.source = source;
+  scene.sensor_origin = viewpoint;
+  scene.up = Eigen::Vector3f::UnitZ();
+  for (const auto& [key, c] : cells) {
+    PointT point;
+    point.getVector3fMap() = c.first / static_cast<float>(c.second);
+    scene.cloud->push_back(point);
+  }
+  scene.cloud->sensor_origin_ << viewpoint, 0.0f;
+  return scene;
 }
 
 std::string utcNow() {
@@ -361,6 +391,10 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
   if (scenes) scenes->assign(jobs.size(), Scene{});
   std::mutex progress_mutex;
   int done = 0;
+  // Each view's points near its object, for the fused scans.
+  std::vector<std::vector<Eigen::Vector3f>> view_points(params.fused.enabled ? jobs.size() : 0);
+  std::vector<Eigen::AlignedBox3f> bounds;
+  for (const auto& p : placed) bounds.push_back(p.bounds());
   parallelFor(static_cast<int>(jobs.size()), threads, [&](int j) {
     const auto scan_start = Clock::now();
     const auto [m, v] = jobs[static_cast<size_t>(j)];
@@ -378,6 +412,17 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     scan.object_size = placed[static_cast<size_t>(m)].bounds().sizes();
     Scene scene = depthImageToWorldScene(depth, source);
     scene.up = Eigen::Vector3f::UnitZ();  // meshes are placed upright on z = 0
+    if (params.fused.enabled) {
+      const Eigen::AlignedBox3f& b = bounds[static_cast<size_t>(m)];
+      const float margin = params.fused.margin;
+      auto& kept = view_points[static_cast<size_t>(j)];
+      for (const auto& p : scene.cloud->points) {
+        if (p.x >= b.min().x() - margin && p.x <= b.max().x() + margin && p.y >= b.min().y() - margin &&
+            p.y <= b.max().y() + margin) {
+          kept.push_back(p.getVector3fMap());
+        }
+      }
+    }
     scan.features = extractFeatures(scene, params.front_end, false).features;
     if (scan.features.gravity) setKnownFloor(scan.features);
     scan.keypoint_box = fitOrientedBox(scan.features.positions);
@@ -390,6 +435,36 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
                       fixed(secondsSince(scan_start), 2) + " s");
     }
   });
+  if (params.fused.enabled) {
+    // Jobs are in mesh order, views[m].size() per mesh.
+    std::vector<size_t> first(meshes.size() + 1, 0);
+    for (size_t m = 0; m < meshes.size(); ++m) first[m + 1] = first[m] + views[m].size();
+    std::vector<TrainingScan> fused(meshes.size());
+    std::vector<Scene> fused_scenes(meshes.size());
+    parallelFor(static_cast<int>(meshes.size()), threads, [&](int m) {
+      const auto mi = static_cast<size_t>(m);
+      std::vector<Eigen::Vector3f> all;
+      for (size_t j = first[mi]; j < first[mi + 1]; ++j) {
+        all.insert(all.end(), view_points[j].begin(), view_points[j].end());
+        std::vector<Eigen::Vector3f>().swap(view_points[j]);
+      }
+      const Eigen::Vector3f viewpoint = views[mi].empty() ? Eigen::Vector3f(Eigen::Vector3f::Zero()) : Eigen::Vector3f(views[mi].front().translation());
+      Scene& scene = fused_scenes[mi];
+      scene = fusedScan(all, viewpoint, params.fused, meshes[mi].path + " fused");
+      TrainingScan& scan = fused[mi];
+      scan.category = meshes[mi].category;
+      scan.model_index = model_index[mi];
+      scan.object_center = placed[mi].bounds().center();
+      scan.object_size = placed[mi].bounds().sizes();
+      scan.features = extractFeatures(scene, params.front_end, false).features;
+      if (scan.features.gravity) setKnownFloor(scan.features);
+      scan.keypoint_box = fitOrientedBox(scan.features.positions);
+    });
+    for (auto& f : fused) scans.push_back(std::move(f));
+    if (scenes) {
+      for (auto& f : fused_scenes) scenes->push_back(std::move(f));
+    }
+  }
   if (params.progress) params.progress("scanning took " + fixed(secondsSince(start), 1) + " s");
   return scans;
 }

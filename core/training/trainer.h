@@ -77,6 +77,17 @@ struct TrainingParams {
   // in view (1.6 m for a chair): robots see furniture from across a room, where a Kinect's
   // points are sparser and noisier and its shadows wider. docs/EVALUATION.md measures it.
   ViewRingParams views{12, 20.0f, 0.0f, 3.5f};
+  // Besides its views, each mesh's views fused into one map, as a robot's mapping stack or a
+  // ScanNet reconstruction shows furniture: surface all around, the views' points averaged per
+  // `spacing` cube as a TSDF averages their noise, no image grid, its contours seen from view 0's
+  // camera as recognition looks at a map from a made-up viewpoint (viewpoint.h). Its features vote
+  // as a view's do. Optional (ism-train --fused-scans): on the dev clouds it lowered the mAP
+  // (docs/EVALUATION.md, "Fused training scans").
+  struct FusedScanParams {
+    bool enabled = false;
+    float spacing = 0.015f;  // m
+    float margin = 0.5f;     // floor kept around the object's footprint (m)
+  } fused;
   CameraIntrinsics intrinsics;
   NoiseParams noise;
   bool global_codebook = true;

@@ -8,6 +8,7 @@
 #include "core/common/error.h"
 #include "core/model/model_file.h"
 #include "tests/common/hand_made_scans.h"
+#include "tests/common/synthetic_furniture.h"
 
 namespace ism {
 namespace {
@@ -111,6 +112,42 @@ TEST(TrainFromScans, NeedsTwoModelsPerCategory) {
   for (auto& s : scans) s.model_index = 0;
   EXPECT_THROW(trainFromScans(scans, {"stool"}, smallParams()), Error);
   EXPECT_THROW(trainFromScans(handMadeScans("stool", 1), {"desk"}, smallParams()), Error);
+}
+
+// A mesh's views fused into one map (TrainingParams::fused) hold its surface all around, without
+// an image grid, as a mapping stack's cloud does; a single view sees one side.
+TEST(ScanMeshes, AFusedScanSurroundsTheObject) {
+  TrainingParams params;
+  params.views.views = 4;
+  params.threads = 2;
+  params.fused.enabled = true;
+  TrainingMesh mesh;
+  mesh.category = "office_chair";
+  mesh.path = "procedural office chair";
+  const std::vector<Mesh> placed{syntheticFurniture("office_chair", 0)};
+  const std::vector<TrainingScan> scans = scanMeshes({mesh}, placed, params);
+  ASSERT_EQ(scans.size(), 5u) << "4 views, then the fused scan";
+  const TrainingScan& fused = scans.back();
+  EXPECT_FALSE(fused.features.organized);
+  EXPECT_EQ(fused.model_index, 0);
+  EXPECT_EQ(fused.object_center, scans.front().object_center);
+  for (int v = 0; v < 4; ++v) EXPECT_TRUE(scans[static_cast<size_t>(v)].features.organized) << "view " << v;
+  ASSERT_GT(fused.features.size(), 20u);
+  int quadrant[4] = {0, 0, 0, 0};
+  Eigen::AlignedBox3f reach;
+  for (const auto& p : fused.features.positions) {
+    ++quadrant[(p.x() > fused.object_center.x() ? 1 : 0) + (p.y() > fused.object_center.y() ? 2 : 0)];
+    reach.extend(p);
+  }
+  for (int q = 0; q < 4; ++q) EXPECT_GT(quadrant[q], 0) << "keypoints on every side, quadrant " << q;
+  const Eigen::AlignedBox3f object = placed.front().bounds();
+  for (int axis = 0; axis < 2; ++axis) {
+    EXPECT_LT(reach.min()[axis], object.min()[axis] + 0.1f) << "axis " << axis;
+    EXPECT_GT(reach.max()[axis], object.max()[axis] - 0.1f) << "axis " << axis;
+  }
+
+  params.fused.enabled = false;
+  EXPECT_EQ(scanMeshes({mesh}, placed, params).size(), 4u);
 }
 
 TEST(TrainingDefaults, BinSizesFollowTheSeed) {
