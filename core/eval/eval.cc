@@ -68,6 +68,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.top_extent.require_top = recognition.require_top;
   options.seat_run.enabled = recognition.seat_run;
   options.open_top.enabled = recognition.open_top;
+  if (!recognition.upper_part) options.open_top.min_upper = 0;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -46,6 +46,7 @@ struct EvalRecognition {
   bool require_top = true;     // TopExtentParams::require_top
   bool seat_run = true;        // SeatRunParams::enabled
   bool open_top = true;        // OpenTopParams::enabled
+  bool upper_part = true;      // OpenTopParams::min_upper above 0
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

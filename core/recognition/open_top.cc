@@ -1,5 +1,7 @@
 #include "core/recognition/open_top.h"
 
+#include <algorithm>
+
 namespace ism {
 
 OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params) {
@@ -9,7 +11,11 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   const float top = local.top();
   check.looked = true;
   check.max_share = params.max_share;
+  check.min_upper = params.min_upper;
   for (const auto& p : scene.points) {
+    if (p.z() > local.floor_z + params.upper_from && p.z() < local.floor_z + params.upper_to && local.overFootprint(p)) {
+      ++check.upper;
+    }
     if (!local.overFootprint(p, params.inner)) continue;
     if (p.z() > top + params.from && p.z() < top + params.to) {
       ++check.above;
@@ -18,6 +24,20 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
     }
   }
   return check;
+}
+
+bool upperPartTrained(const CategoryModel& category, const OpenTopParams& params) {
+  if (params.min_upper <= 0) return false;
+  bool any = false;
+  for (const auto& o : category.objects) {
+    if (o.surface.empty()) continue;  // a shape calibration holds out
+    const auto upper = std::count_if(o.surface.begin(), o.surface.end(), [&](const Eigen::Vector3f& p) {
+      return p.z() > params.upper_from && p.z() < params.upper_to;
+    });
+    if (upper < params.min_upper) return false;
+    any = true;
+  }
+  return any;
 }
 
 }  // namespace ism

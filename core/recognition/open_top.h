@@ -10,6 +10,12 @@
 // inference from RGBD images", ECCV 2012: furniture stands on the floor, not inside other
 // furniture). On the dev clouds every share from 0.05 to 0.2 gained alike and 0.3-0.5 less
 // (docs/EVALUATION.md); the laxest of the plateau is kept.
+// The top of the body must be there: a chair's backrest, a couch's back and arms rise above the seat.
+// Voting also puts chairs on coffee tables, low cabinets and the floor's clutter, whose surface ends
+// at seat height: a hypothesis with no measured point over its footprint in a band above every seat
+// and below every backrest's top is dropped, where each of its category's training shapes has
+// surface in that band (a category a user trains on ottomans has none, and keeps its hypotheses).
+#include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/verification.h"
 
@@ -21,16 +27,30 @@ struct OpenTopParams {
   float from = 0.1f, to = 0.6f;  // above the top (m)
   float body_from = 0.1f;        // the body from this above the floor (m) to the top
   float max_share = 0.2f;        // of the points above among those above and in the body
+  // The top of the body, from upper_from to upper_to above the floor (m), over the whole footprint:
+  // a chair's backrest, a couch's back and arms, above every seat and below every back's top.
+  // Fewer than min_upper measured points there, and the scene shows no such top (a coffee table, a
+  // low cabinet): dropped.
+  float upper_from = 0.55f, upper_to = 0.75f;
+  int min_upper = 1;             // 0: not looked at
 };
 
 struct OpenTopCheck {
   bool looked = false;  // verified, upright and enabled
   int above = 0, body = 0;
+  int upper = 0;        // points in the top of the body
   float max_share = 0;  // OpenTopParams::max_share
+  int min_upper = 0;    // OpenTopParams::min_upper
   float share() const { return above + body > 0 ? static_cast<float>(above) / static_cast<float>(above + body) : 0.0f; }
   bool covered() const { return looked && share() > max_share; }
+  bool topless() const { return looked && upper < min_upper; }
+  bool contradicted() const { return covered() || topless(); }
 };
 
 OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params = {});
+
+// Whether each of the category's training shapes (standing on z = 0) has at least params.min_upper
+// points in the band of the top of the body; false without shapes or with min_upper 0.
+bool upperPartTrained(const CategoryModel& category, const OpenTopParams& params = {});
 
 }  // namespace ism

@@ -214,6 +214,8 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
     const bool flat = options.top_extent.enabled && flatTopped(category, options.top_extent);
     const std::optional<float> training_run = flat ? std::nullopt : trainingSeatRun(category, options.seat_run);
+    OpenTopParams open_top = options.open_top;
+    if (!flat && !upperPartTrained(category, open_top)) open_top.min_upper = 0;
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
@@ -228,7 +230,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
           continue;
         }
       } else if (checkSeatRun(view, h, training_run, options.seat_run).tooShort() ||
-                 checkOpenTop(view, h, options.open_top).covered()) {
+                 checkOpenTop(view, h, open_top).contradicted()) {
         h.passed_selection = false;
         result.rejected.push_back(std::move(h));
         continue;

@@ -73,7 +73,12 @@ int main(int argc, char** argv) {
                "as their category's shortest training shape's");
   bool no_open_top = false;
   app.add_flag("--no-open-top", no_open_top,
-               "default preset: keep chairs and couches with measured surface standing over their top");
+               "default preset: keep chairs and couches with measured surface standing over their top, or none in the "
+               "top of their body");
+  bool no_upper_part = false;
+  app.add_flag("--no-upper-part", no_upper_part,
+               "default preset: keep chairs and couches with no measured surface in the top of their body, where a "
+               "backrest is");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -111,6 +116,7 @@ int main(int argc, char** argv) {
     options.top_extent.enabled = !no_top_extent;
     options.seat_run.enabled = !no_seat_run;
     options.open_top.enabled = !no_open_top;
+    if (no_upper_part) options.open_top.min_upper = 0;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 
