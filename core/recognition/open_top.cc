@@ -13,7 +13,8 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   check.max_share = params.max_share;
   check.min_upper = params.min_upper;
   for (const auto& p : scene.points) {
-    if (p.z() > local.floor_z + params.upper_from && p.z() < local.floor_z + params.upper_to && local.overFootprint(p)) {
+    const float height = p.z() - local.floor_z;
+    if (height > params.upper_from && height < params.upper_to && local.overFootprint(p)) {
       ++check.upper;
     }
     if (!local.overFootprint(p, params.inner)) continue;

@@ -50,7 +50,8 @@ int main(int argc, char** argv) {
                  "training cameras at least this far from the object (m); 0 = as near as it fits in view")
       ->check(CLI::Range(0.0f, 20.0f));
   app.add_flag("--fused-scans", params.fused.enabled,
-               "also each mesh's views fused into one map without image grid, as mapping stacks and ScanNet show furniture");
+               "also each mesh's views fused into one map without image grid, as mapping stacks and ScanNet show "
+               "furniture");
   app.add_option("--fused-spacing", params.fused.spacing, "a fused scan's points averaged per cube of this edge (m)")
       ->check(CLI::Range(0.005f, 0.2f));
   bool seed_front_end = false;

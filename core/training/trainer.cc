@@ -3,13 +3,13 @@
 #include "core/common/version.h"
 
 #include <algorithm>
-#include <cmath>
 #include <chrono>
+#include <cmath>
 #include <ctime>
 #include <map>
 #include <mutex>
-#include <unordered_map>
 #include <sstream>
+#include <unordered_map>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -448,7 +448,8 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
         all.insert(all.end(), view_points[j].begin(), view_points[j].end());
         std::vector<Eigen::Vector3f>().swap(view_points[j]);
       }
-      const Eigen::Vector3f viewpoint = views[mi].empty() ? Eigen::Vector3f(Eigen::Vector3f::Zero()) : Eigen::Vector3f(views[mi].front().translation());
+      Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
+      if (!views[mi].empty()) viewpoint = views[mi].front().translation();
       Scene& scene = fused_scenes[mi];
       scene = fusedScan(all, viewpoint, params.fused, meshes[mi].path + " fused");
       TrainingScan& scan = fused[mi];
