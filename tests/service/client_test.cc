@@ -2,9 +2,14 @@
 // 2 usage, 10 + gRPC status code).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <filesystem>
 #include <regex>
+#include <string>
+#include <vector>
+
+#include <nlohmann/json.hpp>
 
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
@@ -98,14 +103,27 @@ TEST_F(ClientTest, RecognizeWithUpAndMinConfidence) {
   EXPECT_EQ(code, 0) << out;
   EXPECT_NE(out.find("\"source\":\"UP_SOURCE_GIVEN\""), std::string::npos) << out;
   EXPECT_NE(out.find("\"upright_box\":true"), std::string::npos) << out;
-  const auto count = [](const std::string& text) {
-    size_t n = 0;
-    for (size_t at = text.find("\"confidence\":"); at != std::string::npos; at = text.find("\"confidence\":", at + 1)) ++n;
-    return n;
+  // Above the least confident answer, that one goes.
+  const auto confidences = [](const std::string& text) {
+    const nlohmann::json answer = nlohmann::json::parse(text);
+    std::vector<float> all;
+    for (const auto& h : answer.at("response").at("result").at("hypotheses")) {
+      all.push_back(h.at("confidence").get<float>());
+    }
+    return all;
   };
-  const std::string fewer = client("--json recognize --up 0,0,1 --min-confidence 0.3 " + pcd, &code);
+  const std::vector<float> all = confidences(out);
+  ASSERT_FALSE(all.empty()) << out;
+  const float least = *std::min_element(all.begin(), all.end());
+  ASSERT_LT(least, 0.98f) << out;
+  char higher[32];
+  std::snprintf(higher, sizeof(higher), "%.3f", least + 0.001f);  // at least 0.0005 above it
+  const std::string fewer =
+      client("--json recognize --up 0,0,1 --min-confidence " + std::string(higher) + " " + pcd, &code);
   EXPECT_EQ(code, 0) << fewer;
-  EXPECT_LT(count(fewer), count(out)) << fewer;
+  const std::vector<float> kept = confidences(fewer);
+  EXPECT_LT(kept.size(), all.size()) << fewer;
+  for (const float c : kept) EXPECT_GE(c, std::stof(higher)) << fewer;
 
   // Streams send the up with every frame.
   out = client("stream --policy every --up 0,0,1 --fx 131.25 --fy 131.25 --cx 79.5 --cy 59.5 --folder " +
