@@ -298,6 +298,13 @@ void trainCodebookType(CodebookType type, const std::vector<TrainingScan>& scans
   report(std::string(toString(type)) + " leave-one-out thresholds in " + fixed(secondsSince(loo_start), 1) + " s");
 }
 
+// A scan's features, the floor under them known, and the box of its keypoints.
+void describeScan(const Scene& scene, const TrainingParams& params, TrainingScan& scan) {
+  scan.features = extractFeatures(scene, params.front_end, false).features;
+  if (scan.features.gravity) setKnownFloor(scan.features);
+  scan.keypoint_box = fitOrientedBox(scan.features.positions);
+}
+
 }  // namespace
 
 FrontEndParams defaultFrontEnd() {
@@ -391,10 +398,10 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
   if (scenes) scenes->assign(jobs.size(), Scene{});
   std::mutex progress_mutex;
   int done = 0;
-  // Each view's points near its object, for the fused scans.
-  std::vector<std::vector<Eigen::Vector3f>> view_points(params.fused.enabled ? jobs.size() : 0);
   std::vector<Eigen::AlignedBox3f> bounds;
   for (const auto& p : placed) bounds.push_back(p.bounds());
+  // Each view's points near its object, for the fused scans.
+  std::vector<std::vector<Eigen::Vector3f>> view_points(params.fused.enabled ? jobs.size() : 0);
   parallelFor(static_cast<int>(jobs.size()), threads, [&](int j) {
     const auto scan_start = Clock::now();
     const auto [m, v] = jobs[static_cast<size_t>(j)];
@@ -408,8 +415,8 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     TrainingScan& scan = scans[static_cast<size_t>(j)];
     scan.category = mesh.category;
     scan.model_index = model_index[static_cast<size_t>(m)];
-    scan.object_center = placed[static_cast<size_t>(m)].bounds().center();
-    scan.object_size = placed[static_cast<size_t>(m)].bounds().sizes();
+    scan.object_center = bounds[static_cast<size_t>(m)].center();
+    scan.object_size = bounds[static_cast<size_t>(m)].sizes();
     Scene scene = depthImageToWorldScene(depth, source);
     scene.up = Eigen::Vector3f::UnitZ();  // meshes are placed upright on z = 0
     if (params.fused.enabled) {
@@ -423,9 +430,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
         }
       }
     }
-    scan.features = extractFeatures(scene, params.front_end, false).features;
-    if (scan.features.gravity) setKnownFloor(scan.features);
-    scan.keypoint_box = fitOrientedBox(scan.features.positions);
+    describeScan(scene, params, scan);
     if (scenes) (*scenes)[static_cast<size_t>(j)] = std::move(scene);
     if (params.progress) {
       std::lock_guard<std::mutex> lock(progress_mutex);
@@ -455,11 +460,9 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
       TrainingScan& scan = fused[mi];
       scan.category = meshes[mi].category;
       scan.model_index = model_index[mi];
-      scan.object_center = placed[mi].bounds().center();
-      scan.object_size = placed[mi].bounds().sizes();
-      scan.features = extractFeatures(scene, params.front_end, false).features;
-      if (scan.features.gravity) setKnownFloor(scan.features);
-      scan.keypoint_box = fitOrientedBox(scan.features.positions);
+      scan.object_center = bounds[mi].center();
+      scan.object_size = bounds[mi].sizes();
+      describeScan(scene, params, scan);
     });
     for (auto& f : fused) scans.push_back(std::move(f));
     if (scenes) {
