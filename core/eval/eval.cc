@@ -69,6 +69,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.seat_run.enabled = recognition.seat_run;
   options.open_top.enabled = recognition.open_top;
   if (!recognition.upper_part) options.open_top.min_upper = 0;
+  if (!recognition.level_top) options.open_top.max_level = 0;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

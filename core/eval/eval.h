@@ -47,6 +47,7 @@ struct EvalRecognition {
   bool seat_run = true;        // SeatRunParams::enabled
   bool open_top = true;        // OpenTopParams::enabled
   bool upper_part = true;      // OpenTopParams::min_upper above 0
+  bool level_top = true;       // OpenTopParams::max_level above 0
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -60,6 +60,10 @@ struct Hypothesis {
   int support = 0;       // keypoints that voted into the peak
   Eigen::Vector3f support_centroid = Eigen::Vector3f::Zero();
   bool passed_selection = true;  // box volume within range and longest edge below the maximum
+  // The scene refutes the category but shows an object there, of which this is the best answer (a
+  // couch on a bed's level top, open_top.h): it keeps its place among the answers per object, so
+  // that no other category's answer takes the same object, and is then rejected.
+  bool refuted = false;
   std::vector<Alternative> alternatives;  // best first
   std::optional<Verification> verification;  // default preset, models with training shapes
   std::vector<Eigen::Vector3f> support_keypoints;  // when asked for

@@ -1,6 +1,9 @@
 #include "core/recognition/open_top.h"
 
 #include <algorithm>
+#include <cmath>
+#include <limits>
+#include <vector>
 
 namespace ism {
 
@@ -12,8 +15,14 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   check.looked = true;
   check.max_share = params.max_share;
   check.min_upper = params.min_upper;
+  check.max_level = params.max_level;
+  std::vector<Eigen::Vector3f> footprint;  // (along the box's width, along its depth, height)
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
+    if (params.max_level > 0 && local.overFootprint(p)) {
+      const float dx = p.x() - local.box.center.x(), dy = p.y() - local.box.center.y();
+      footprint.emplace_back(local.cos_yaw * dx + local.sin_yaw * dy, -local.sin_yaw * dx + local.cos_yaw * dy, height);
+    }
     if (height > params.upper_from && height < params.upper_to && local.overFootprint(p)) {
       ++check.upper;
     }
@@ -24,7 +33,49 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
       ++check.body;
     }
   }
+  if (params.max_level > 0) {
+    check.level_share = levelShare(footprint, local.box.size.x(), local.box.size.y(), top - local.floor_z, params);
+  }
   return check;
+}
+
+float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,
+                 const OpenTopParams& params) {
+  const float cell = std::max(params.level_cell, 1e-3f);
+  const int nx = std::max(1, static_cast<int>(std::lround(width / cell)));
+  const int ny = std::max(1, static_cast<int>(std::lround(depth / cell)));
+  std::vector<float> highest(static_cast<size_t>(nx) * static_cast<size_t>(ny), -std::numeric_limits<float>::infinity());
+  for (const auto& p : points) {
+    if (p.z() <= params.body_from || p.z() >= top + params.level_over) continue;
+    const float u = (p.x() + width / 2) / width, v = (p.y() + depth / 2) / depth;
+    if (u < 0 || u > 1 || v < 0 || v > 1) continue;
+    const int ix = std::min(nx - 1, static_cast<int>(u * static_cast<float>(nx)));
+    const int iy = std::min(ny - 1, static_cast<int>(v * static_cast<float>(ny)));
+    float& h = highest[static_cast<size_t>(ix) * static_cast<size_t>(ny) + static_cast<size_t>(iy)];
+    h = std::max(h, p.z());
+  }
+  std::vector<float> tops;
+  for (const float h : highest) {
+    if (std::isfinite(h)) tops.push_back(h);
+  }
+  std::sort(tops.begin(), tops.end());
+  size_t most = 0;
+  for (size_t lo = 0, hi = 0; hi < tops.size(); ++hi) {
+    while (tops[hi] - tops[lo] >= params.level_band) ++lo;
+    most = std::max(most, hi - lo + 1);
+  }
+  return static_cast<float>(most) / static_cast<float>(highest.size());
+}
+
+bool stepTopTrained(const CategoryModel& category, const OpenTopParams& params) {
+  if (params.max_level <= 0) return false;
+  bool any = false;
+  for (const auto& o : category.objects) {
+    if (o.surface.empty()) continue;  // a shape calibration holds out
+    if (levelShare(o.surface, o.size.x(), o.size.y(), o.size.z(), params) >= params.max_level) return false;
+    any = true;
+  }
+  return any;
 }
 
 bool upperPartTrained(const CategoryModel& category, const OpenTopParams& params) {

@@ -15,6 +15,16 @@
 // at seat height: a hypothesis with no measured point over its footprint in a band above every seat
 // and below every backrest's top is dropped, where each of its category's training shapes has
 // surface in that band (a category a user trains on ottomans has none, and keeps its hypotheses).
+// Nor is the top of the body one level: a couch's seat covers part of its footprint, and its back
+// and arms rise over the rest. Voting also puts couches on the ends of beds, whose mattress runs
+// level over the whole footprint at about a seat's height and gives the top of the body its points.
+// Where most of the footprint's cells hold their highest measured point within one band, for a
+// category each of whose training shapes is less level than that, the hypothesis is refuted
+// (Hypothesis::refuted): an object of its size stands there, but not one of its category. It keeps
+// that object from the other categories' answers (a table on the same bed) and is then rejected:
+// the object gets no answer rather than the next category's, as an open-set recogniser answers
+// "unknown" when its best class is refuted (Scheirer et al., "Toward open set recognition",
+// TPAMI 2013).
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/verification.h"
@@ -33,6 +43,11 @@ struct OpenTopParams {
   // low cabinet): dropped.
   float upper_from = 0.55f, upper_to = 0.75f;
   int min_upper = 1;             // 0: not looked at
+  // A level top: the footprint in cells level_cell square, each cell's highest measured point from
+  // body_from above the floor to level_over above the top. When max_level or more of the cells hold
+  // it within one band level_band high, the scene shows one level surface there. 0: not looked at.
+  float level_cell = 0.08f, level_band = 0.1f, level_over = 0.3f;
+  float max_level = 0.6f;
 };
 
 struct OpenTopCheck {
@@ -41,9 +56,13 @@ struct OpenTopCheck {
   int upper = 0;        // points in the top of the body
   float max_share = 0;  // OpenTopParams::max_share
   int min_upper = 0;    // OpenTopParams::min_upper
+  float level_share = 0;  // the share of the footprint's cells whose highest point lies in one band
+  float max_level = 0;    // OpenTopParams::max_level
   float share() const { return above + body > 0 ? static_cast<float>(above) / static_cast<float>(above + body) : 0.0f; }
   bool covered() const { return looked && share() > max_share; }
   bool topless() const { return looked && upper < min_upper; }
+  // Something stands there, but not the category: the hypothesis is refuted (Hypothesis::refuted).
+  bool level() const { return looked && max_level > 0 && level_share >= max_level; }
   bool contradicted() const { return covered() || topless(); }
 };
 
@@ -52,5 +71,17 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
 // Whether each of the category's training shapes (standing on z = 0) has at least params.min_upper
 // points in the band of the top of the body; false without shapes or with min_upper 0.
 bool upperPartTrained(const CategoryModel& category, const OpenTopParams& params = {});
+
+// The share of a footprint's cells whose highest point lies within one band of params.level_band:
+// `points` are (x, y, height above the floor) about the footprint's centre, along its sides, of a
+// footprint `width` x `depth`, each cell level_cell square; points outside it, below
+// params.body_from or above `top` + params.level_over are not looked at.
+float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,
+                 const OpenTopParams& params = {});
+
+// Whether each of the category's training shapes is less level than params.max_level (couches,
+// whose back and arms rise over the seat; not chairs, whose seat covers most of the footprint);
+// false without shapes or with max_level 0.
+bool stepTopTrained(const CategoryModel& category, const OpenTopParams& params = {});
 
 }  // namespace ism

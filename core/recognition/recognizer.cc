@@ -196,7 +196,8 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 // mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
 // table's box becomes its measured top, and one outside the footprint prior goes to
 // result.rejected, as does any other whose seat-height run is short (seat_run.h) or over whose top
-// the scene goes on (open_top.h).
+// the scene goes on (open_top.h). A couch over a level top (open_top.h) is refuted: it is rejected
+// after the answers per object are chosen (selectHypotheses).
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
@@ -216,6 +217,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     const std::optional<float> training_run = flat ? std::nullopt : trainingSeatRun(category, options.seat_run);
     OpenTopParams open_top = options.open_top;
     if (!flat && !upperPartTrained(category, open_top)) open_top.min_upper = 0;
+    if (!flat && !stepTopTrained(category, open_top)) open_top.max_level = 0;
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
@@ -229,11 +231,15 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
           result.rejected.push_back(std::move(h));
           continue;
         }
-      } else if (checkSeatRun(view, h, training_run, options.seat_run).tooShort() ||
-                 checkOpenTop(view, h, open_top).contradicted()) {
-        h.passed_selection = false;
-        result.rejected.push_back(std::move(h));
-        continue;
+      } else {
+        const bool short_run = checkSeatRun(view, h, training_run, options.seat_run).tooShort();
+        const OpenTopCheck top = short_run ? OpenTopCheck{} : checkOpenTop(view, h, open_top);
+        if (short_run || top.contradicted()) {
+          h.passed_selection = false;
+          result.rejected.push_back(std::move(h));
+          continue;
+        }
+        h.refuted = top.level();
       }
       verified.push_back(std::move(h));
     }
@@ -261,6 +267,12 @@ void selectHypotheses(std::vector<Hypothesis> all, const Features& features, con
     all.erase(std::remove_if(all.begin(), all.end(),
                              [&](const Hypothesis& h) { return h.confidence < options.min_confidence; }),
               all.end());
+    const auto refuted = std::stable_partition(all.begin(), all.end(), [](const Hypothesis& h) { return !h.refuted; });
+    for (auto h = refuted; h != all.end(); ++h) {
+      h->passed_selection = false;
+      result.rejected.push_back(std::move(*h));
+    }
+    all.erase(refuted, all.end());
   }
   for (auto& rejected : result.rejected) {
     if (!options.return_keypoints) rejected.support_keypoints = {};

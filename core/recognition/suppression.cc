@@ -68,7 +68,7 @@ std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, con
       continue;
     }
     Hypothesis& w = kept[winner];
-    if (h.category == w.category) continue;  // another peak of the same object
+    if (h.category == w.category || h.refuted) continue;  // another peak of the same object, or not an answer
     const bool listed = std::any_of(w.alternatives.begin(), w.alternatives.end(),
                                     [&](const Alternative& a) { return a.category == h.category; });
     if (!listed) w.alternatives.push_back({h.category, h.confidence});  // most confident of its category first

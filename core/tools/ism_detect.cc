@@ -79,6 +79,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-upper-part", no_upper_part,
                "default preset: keep chairs and couches with no measured surface in the top of their body, where a "
                "backrest is");
+  bool no_level_top = false;
+  app.add_flag("--no-level-top", no_level_top,
+               "default preset: keep couches over whose footprint the measured surface is one level, as a bed's "
+               "mattress is");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -117,6 +121,7 @@ int main(int argc, char** argv) {
     options.seat_run.enabled = !no_seat_run;
     options.open_top.enabled = !no_open_top;
     if (no_upper_part) options.open_top.min_upper = 0;
+    if (no_level_top) options.open_top.max_level = 0;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 

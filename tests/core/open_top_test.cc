@@ -119,5 +119,93 @@ TEST(OpenTop, OnlyForCategoriesWhoseShapesHaveAnUpperPart) {
   EXPECT_FALSE(upperPartTrained(chairs, off));
 }
 
+// A couch 2 x 0.9 m (a seat at 0.45 m over the front 0.65 m, a back to 0.85 m, arms to 0.65 m) at
+// y = -2 m, and a bed 2 x 1.6 m whose mattress is level at 0.6 m at y = 2 m, as a map.
+VerificationScene couchAndBed() {
+  VerificationScene view;
+  view.floor_z = 0.0f;
+  view.map = true;
+  plate(view.points, -3.0f, 3.0f, -3.5f, 3.5f, 0.0f);
+  plate(view.points, -0.85f, 0.85f, -2.45f, -1.8f, 0.45f);  // the seat
+  plate(view.points, -1.0f, 1.0f, -1.8f, -1.55f, 0.85f);   // the back's top
+  plate(view.points, -1.0f, -0.85f, -2.45f, -1.8f, 0.65f);  // the arms
+  plate(view.points, 0.85f, 1.0f, -2.45f, -1.8f, 0.65f);
+  plate(view.points, -1.0f, 1.0f, 1.2f, 2.8f, 0.6f);        // the mattress
+  return view;
+}
+
+Hypothesis couchAt(float y) {
+  UprightBox box;
+  box.size = {2.0f, 0.9f, 0.85f};
+  box.center = {0.0f, y, 0.425f};
+  return testing::verifiedHypothesis("couch", box);
+}
+
+TEST(OpenTop, ACouchIsNotOneLevel) {
+  const VerificationScene view = couchAndBed();
+  const OpenTopCheck couch = checkOpenTop(view, couchAt(-2.0f));
+  EXPECT_GT(couch.level_share, 0.4f) << "the seat";
+  EXPECT_LT(couch.level_share, 0.6f) << "the back and the arms rise over it";
+  EXPECT_FALSE(couch.level());
+  EXPECT_FALSE(couch.contradicted());
+
+  // At the bed's foot the mattress fills the top of the body's band and the whole footprint at
+  // one level: something stands there, but not a couch.
+  const OpenTopCheck bed = checkOpenTop(view, couchAt(1.6f));
+  EXPECT_GT(bed.upper, 0) << "the mattress at 0.6 m";
+  EXPECT_FALSE(bed.contradicted());
+  EXPECT_GT(bed.level_share, 0.95f);
+  EXPECT_TRUE(bed.level());
+
+  OpenTopParams off;
+  off.max_level = 0;
+  EXPECT_FALSE(checkOpenTop(view, couchAt(1.6f), off).level());
+}
+
+TEST(OpenTop, TheLevelShareCountsTheFootprintsCells) {
+  std::vector<Eigen::Vector3f> half;  // a level plate over one half of a 1 m square, none on the other
+  plate(half, -0.48f, -0.02f, -0.48f, 0.48f, 0.5f);
+  EXPECT_NEAR(levelShare(half, 1.0f, 1.0f, 0.8f), 0.5f, 0.1f);
+  std::vector<Eigen::Vector3f> steps = half;  // the other half a step higher
+  plate(steps, 0.02f, 0.48f, -0.48f, 0.48f, 0.7f);
+  EXPECT_NEAR(levelShare(steps, 1.0f, 1.0f, 0.8f), 0.5f, 0.1f);
+  std::vector<Eigen::Vector3f> slope = half;  // within one band: one level
+  plate(slope, 0.02f, 0.48f, -0.48f, 0.48f, 0.55f);
+  EXPECT_GT(levelShare(slope, 1.0f, 1.0f, 0.8f), 0.95f);
+  // Points outside the footprint, on the floor or far over the top are not looked at.
+  std::vector<Eigen::Vector3f> outside;
+  plate(outside, 0.6f, 1.0f, -0.48f, 0.48f, 0.5f);
+  plate(outside, -0.48f, 0.48f, -0.48f, 0.48f, 0.05f);
+  plate(outside, -0.48f, 0.48f, -0.48f, 0.48f, 1.2f);
+  EXPECT_EQ(levelShare(outside, 1.0f, 1.0f, 0.8f), 0.0f);
+}
+
+// The level top is looked at only for categories none of whose training shapes is that level.
+TEST(OpenTop, LevelTopsOnlyForCategoriesWhoseShapesRiseOverTheSeat) {
+  TrainingObject couch, chair, ottoman;
+  couch.size = {2.0f, 0.9f, 0.85f};
+  plate(couch.surface, -0.85f, 0.85f, -0.45f, 0.2f, 0.45f);
+  plate(couch.surface, -1.0f, 1.0f, 0.2f, 0.45f, 0.85f);
+  plate(couch.surface, -1.0f, -0.85f, -0.45f, 0.2f, 0.65f);
+  plate(couch.surface, 0.85f, 1.0f, -0.45f, 0.2f, 0.65f);
+  chair.size = {0.5f, 0.5f, 0.9f};  // the seat covers most of a chair's footprint
+  plate(chair.surface, -0.25f, 0.25f, -0.25f, 0.17f, 0.45f);
+  plate(chair.surface, -0.25f, 0.25f, 0.17f, 0.25f, 0.9f);
+  ottoman.size = {0.6f, 0.6f, 0.4f};
+  plate(ottoman.surface, -0.3f, 0.3f, -0.3f, 0.3f, 0.4f);
+  CategoryModel couches, chairs, mixed, shapeless;
+  couches.objects = {couch, couch};
+  chairs.objects = {chair};
+  mixed.objects = {couch, ottoman};
+  shapeless.objects.resize(2);
+  EXPECT_TRUE(stepTopTrained(couches));
+  EXPECT_FALSE(stepTopTrained(chairs));
+  EXPECT_FALSE(stepTopTrained(mixed)) << "one shape is level";
+  EXPECT_FALSE(stepTopTrained(shapeless));
+  OpenTopParams off;
+  off.max_level = 0;
+  EXPECT_FALSE(stepTopTrained(couches, off));
+}
+
 }  // namespace
 }  // namespace ism

@@ -105,5 +105,24 @@ TEST(Suppression, ObjectsApartAreAllKept) {
   EXPECT_EQ(suppressOverlaps(hs, kUp).size(), 3u);
 }
 
+// A refuted hypothesis (a couch on a bed's level top) keeps its object from the others' answers
+// but is no one's alternative.
+TEST(Suppression, ARefutedHypothesisKeepsItsObjectButIsNoAlternative) {
+  Hypothesis couch = hypothesis("couch", 0.8f, kDeskCentre, kDeskSize, cells(0, 100));
+  couch.refuted = true;
+  const Hypothesis table = hypothesis("table", 0.5f, kDeskCentre, kDeskSize, cells(0, 100));
+  auto kept = suppressOverlaps({couch, table}, kUp);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_TRUE(kept[0].refuted) << "the table stands on the same object";
+  ASSERT_EQ(kept[0].alternatives.size(), 1u);
+  EXPECT_EQ(kept[0].alternatives[0].category, "table");
+
+  couch.confidence = 0.3f;
+  kept = suppressOverlaps({couch, table}, kUp);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].category, "table");
+  EXPECT_TRUE(kept[0].alternatives.empty()) << "a refuted couch is not the table's alternative";
+}
+
 }  // namespace
 }  // namespace ism
