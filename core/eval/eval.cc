@@ -70,6 +70,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.open_top.enabled = recognition.open_top;
   if (!recognition.upper_part) options.open_top.min_upper = 0;
   if (!recognition.level_top) options.open_top.max_level = 0;
+  options.bare_floor.enabled = recognition.bare_floor;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -48,6 +48,7 @@ struct EvalRecognition {
   bool open_top = true;        // OpenTopParams::enabled
   bool upper_part = true;      // OpenTopParams::min_upper above 0
   bool level_top = true;       // OpenTopParams::max_level above 0
+  bool bare_floor = true;      // BareFloorParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -196,7 +196,8 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 // mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
 // table's box becomes its measured top, and one outside the footprint prior goes to
 // result.rejected, as does any other whose seat-height run is short (seat_run.h) or over whose top
-// the scene goes on (open_top.h). A couch over a level top (open_top.h) is refuted: it is rejected
+// the scene goes on (open_top.h). Any category's hypothesis with bare floor in the middle of its
+// footprint goes there too (bare_floor.h). A couch over a level top (open_top.h) is refuted: it is rejected
 // after the answers per object are chosen (selectHypotheses).
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
@@ -218,6 +219,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     OpenTopParams open_top = options.open_top;
     if (!flat && !upperPartTrained(category, open_top)) open_top.min_upper = 0;
     if (!flat && !stepTopTrained(category, open_top)) open_top.max_level = 0;
+    const bool covering = footprintCoveredTrained(category, options.bare_floor);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
@@ -226,7 +228,8 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
         const TopFound top = extendToTop(view, h, options.top_extent);
         if ((options.top_extent.require_top && top == TopFound::kMissing) ||
             (options.top_extent.footprint_prior &&
-             !withinFootprintPrior(h, category, to_gravity, priorSlack(model, category)))) {
+             !withinFootprintPrior(h, category, to_gravity, priorSlack(model, category))) ||
+            checkBareFloor(view, h, covering, options.bare_floor).bareFloor()) {
           h.passed_selection = false;
           result.rejected.push_back(std::move(h));
           continue;
@@ -234,7 +237,7 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
       } else {
         const bool short_run = checkSeatRun(view, h, training_run, options.seat_run).tooShort();
         const OpenTopCheck top = short_run ? OpenTopCheck{} : checkOpenTop(view, h, open_top);
-        if (short_run || top.contradicted()) {
+        if (short_run || top.contradicted() || checkBareFloor(view, h, covering, options.bare_floor).bareFloor()) {
           h.passed_selection = false;
           result.rejected.push_back(std::move(h));
           continue;

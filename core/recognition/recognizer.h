@@ -17,6 +17,7 @@
 #include "core/recognition/box_selection.h"
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
+#include "core/recognition/bare_floor.h"
 #include "core/recognition/open_top.h"
 #include "core/recognition/seat_run.h"
 #include "core/recognition/suppression.h"
@@ -68,6 +69,9 @@ struct RecognitionOptions {
   // Default preset, the same hypotheses: one with measured surface standing over its top, more than
   // a fifth of the points over its inner footprint, is rejected (open_top.h).
   OpenTopParams open_top;
+  // Default preset, verified hypotheses of every category whose shapes cover their footprint: one
+  // with bare floor in the middle of its footprint is rejected (bare_floor.h).
+  BareFloorParams bare_floor;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)

@@ -79,6 +79,9 @@ int main(int argc, char** argv) {
   app.add_flag("--no-upper-part", no_upper_part,
                "default preset: keep chairs and couches with no measured surface in the top of their body, where a "
                "backrest is");
+  bool no_bare_floor = false;
+  app.add_flag("--no-bare-floor", no_bare_floor,
+               "default preset: keep hypotheses with bare floor in the middle of their footprint");
   bool no_level_top = false;
   app.add_flag("--no-level-top", no_level_top,
                "default preset: keep couches over whose footprint the measured surface is one level, as a bed's "
@@ -122,6 +125,7 @@ int main(int argc, char** argv) {
     options.open_top.enabled = !no_open_top;
     if (no_upper_part) options.open_top.min_upper = 0;
     if (no_level_top) options.open_top.max_level = 0;
+    options.bare_floor.enabled = !no_bare_floor;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 
