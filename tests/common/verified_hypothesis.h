@@ -18,4 +18,12 @@ inline Hypothesis verifiedHypothesis(const std::string& category, const UprightB
   return h;
 }
 
+// A verified couch 2 x 0.9 x 0.85 m standing on z = 0 at (0, y).
+inline Hypothesis verifiedCouchAt(float y) {
+  UprightBox box;
+  box.size = {2.0f, 0.9f, 0.85f};
+  box.center = {0.0f, y, 0.425f};
+  return verifiedHypothesis("couch", box);
+}
+
 }  // namespace ism::testing

@@ -8,17 +8,14 @@
 #include <gtest/gtest.h>
 
 #include "core/common/upright_box.h"
+#include "tests/common/map_surfaces.h"
 #include "tests/common/verified_hypothesis.h"
 
 namespace ism {
 namespace {
 
-// Points every 5 cm on the horizontal rectangle [x0, x1] x [y0, y1] at height z.
-void plate(std::vector<Eigen::Vector3f>& points, float x0, float x1, float y0, float y1, float z) {
-  for (float x = x0; x <= x1 + 1e-4f; x += 0.05f) {
-    for (float y = y0; y <= y1 + 1e-4f; y += 0.05f) points.emplace_back(x, y, z);
-  }
-}
+using testing::plate;
+using testing::verifiedCouchAt;
 
 // As a map, the floor measured everywhere (under furniture on legs too): a couch on legs 2 x 0.9 m
 // at y = -2 m (its seat at 0.45 m), three chairs in a row at y = 2 m (seats 0.4 m square, 0.3 m
@@ -33,45 +30,38 @@ VerificationScene scene() {
   return view;
 }
 
-Hypothesis couchAt(float y) {
-  UprightBox box;
-  box.size = {2.0f, 0.9f, 0.85f};
-  box.center = {0.0f, y, 0.425f};
-  return testing::verifiedHypothesis("couch", box);
-}
-
 TEST(BareFloor, ACouchOnLegsCoversTheFloorUnderIt) {
   const VerificationScene view = scene();
-  const BareFloorCheck couch = checkBareFloor(view, couchAt(-2.0f), true);
+  const BareFloorCheck couch = checkBareFloor(view, verifiedCouchAt(-2.0f), true);
   EXPECT_TRUE(couch.looked);
   EXPECT_EQ(couch.bare, 0.0f) << "the floor under the seat is covered";
   EXPECT_FALSE(couch.bareFloor());
 
-  const BareFloorCheck chairs = checkBareFloor(view, couchAt(2.0f), true);
+  const BareFloorCheck chairs = checkBareFloor(view, verifiedCouchAt(2.0f), true);
   EXPECT_GT(chairs.bare, 0.3f) << "the floor between the chairs, with nothing over it";
   EXPECT_LT(chairs.bare, 0.8f);
   EXPECT_TRUE(chairs.bareFloor());
 
-  const BareFloorCheck empty = checkBareFloor(view, couchAt(0.0f), true);
+  const BareFloorCheck empty = checkBareFloor(view, verifiedCouchAt(0.0f), true);
   EXPECT_EQ(empty.bare, 1.0f);
   EXPECT_TRUE(empty.bareFloor());
 
   // In one frame a seat may hide behind its backrest while the floor shows under it: maps only.
   VerificationScene frame = scene();
   frame.map = false;
-  EXPECT_FALSE(checkBareFloor(frame, couchAt(0.0f), true).looked);
+  EXPECT_FALSE(checkBareFloor(frame, verifiedCouchAt(0.0f), true).looked);
   BareFloorParams every_scene;
   every_scene.maps_only = false;
-  EXPECT_TRUE(checkBareFloor(frame, couchAt(0.0f), true, every_scene).bareFloor());
+  EXPECT_TRUE(checkBareFloor(frame, verifiedCouchAt(0.0f), true, every_scene).bareFloor());
 
   // Not looked at: a category whose shapes leave their footprint open, unverified, or switched off.
-  EXPECT_FALSE(checkBareFloor(view, couchAt(0.0f), false).looked);
-  Hypothesis unverified = couchAt(0.0f);
+  EXPECT_FALSE(checkBareFloor(view, verifiedCouchAt(0.0f), false).looked);
+  Hypothesis unverified = verifiedCouchAt(0.0f);
   unverified.verification.reset();
   EXPECT_FALSE(checkBareFloor(view, unverified, true).looked);
   BareFloorParams off;
   off.enabled = false;
-  EXPECT_FALSE(checkBareFloor(view, couchAt(0.0f), true, off).bareFloor());
+  EXPECT_FALSE(checkBareFloor(view, verifiedCouchAt(0.0f), true, off).bareFloor());
 }
 
 TEST(BareFloor, TheShareCountsFloorWithNothingOverIt) {

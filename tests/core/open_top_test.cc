@@ -7,23 +7,15 @@
 #include <gtest/gtest.h>
 
 #include "core/common/upright_box.h"
+#include "tests/common/map_surfaces.h"
 #include "tests/common/verified_hypothesis.h"
 
 namespace ism {
 namespace {
 
-// Points every 5 cm on the horizontal rectangle [x0, x1] x [y0, y1] at height z, or on the
-// vertical one [x0, x1] x [z0, z1] at depth y: a map's surface.
-void plate(std::vector<Eigen::Vector3f>& points, float x0, float x1, float y0, float y1, float z) {
-  for (float x = x0; x <= x1 + 1e-4f; x += 0.05f) {
-    for (float y = y0; y <= y1 + 1e-4f; y += 0.05f) points.emplace_back(x, y, z);
-  }
-}
-void wall(std::vector<Eigen::Vector3f>& points, float x0, float x1, float y, float z0, float z1) {
-  for (float x = x0; x <= x1 + 1e-4f; x += 0.05f) {
-    for (float z = z0; z <= z1 + 1e-4f; z += 0.05f) points.emplace_back(x, y, z);
-  }
-}
+using testing::plate;
+using testing::verifiedCouchAt;
+using testing::wall;
 
 // A chair 0.5 m square (a seat at 0.45 m, a backrest to 0.9 m) at x = -1 m, the same chair at
 // x = 1 m under a wall cabinet whose bottom is 0.3 m over the chair's top, a coffee table's top
@@ -134,16 +126,9 @@ VerificationScene couchAndBed() {
   return view;
 }
 
-Hypothesis couchAt(float y) {
-  UprightBox box;
-  box.size = {2.0f, 0.9f, 0.85f};
-  box.center = {0.0f, y, 0.425f};
-  return testing::verifiedHypothesis("couch", box);
-}
-
 TEST(OpenTop, ACouchIsNotOneLevel) {
   const VerificationScene view = couchAndBed();
-  const OpenTopCheck couch = checkOpenTop(view, couchAt(-2.0f));
+  const OpenTopCheck couch = checkOpenTop(view, verifiedCouchAt(-2.0f));
   EXPECT_GT(couch.level_share, 0.4f) << "the seat";
   EXPECT_LT(couch.level_share, 0.6f) << "the back and the arms rise over it";
   EXPECT_FALSE(couch.level());
@@ -151,7 +136,7 @@ TEST(OpenTop, ACouchIsNotOneLevel) {
 
   // At the bed's foot the mattress fills the top of the body's band and the whole footprint at
   // one level: something stands there, but not a couch.
-  const OpenTopCheck bed = checkOpenTop(view, couchAt(1.6f));
+  const OpenTopCheck bed = checkOpenTop(view, verifiedCouchAt(1.6f));
   EXPECT_GT(bed.upper, 0) << "the mattress at 0.6 m";
   EXPECT_FALSE(bed.contradicted());
   EXPECT_GT(bed.level_share, 0.95f);
@@ -159,7 +144,7 @@ TEST(OpenTop, ACouchIsNotOneLevel) {
 
   OpenTopParams off;
   off.max_level = 0;
-  EXPECT_FALSE(checkOpenTop(view, couchAt(1.6f), off).level());
+  EXPECT_FALSE(checkOpenTop(view, verifiedCouchAt(1.6f), off).level());
 }
 
 TEST(OpenTop, TheLevelShareCountsTheFootprintsCells) {
