@@ -17,7 +17,7 @@ struct Cells {
     ny = std::max(1, static_cast<int>(std::ceil(depth / params.cell)));
     marks.assign(static_cast<size_t>(nx) * static_cast<size_t>(ny), 0);
   }
-  // (x, y) about the footprint's centre along its sides; false outside the inner footprint.
+  // (x, y) about the footprint's centre along its sides; null outside the inner footprint.
   char* at(float x, float y) {
     const float u = (x + width / 2) / width, v = (y + depth / 2) / depth;
     if (u < 0 || u >= 1 || v < 0 || v >= 1) return nullptr;
@@ -53,8 +53,9 @@ BareFloorCheck checkBareFloor(const VerificationScene& scene, const Hypothesis& 
   Cells cells(local.box.size.x(), local.box.size.y(), params);
   for (const auto& p : scene.points) {
     const float dx = p.x() - local.box.center.x(), dy = p.y() - local.box.center.y();
-    cells.add({local.cos_yaw * dx + local.sin_yaw * dy, -local.sin_yaw * dx + local.cos_yaw * dy, p.z() - local.floor_z},
-              top, params);
+    const Eigen::Vector3f along(local.cos_yaw * dx + local.sin_yaw * dy, -local.sin_yaw * dx + local.cos_yaw * dy,
+                                p.z() - local.floor_z);
+    cells.add(along, top, params);
   }
   check.bare = cells.share(1);
   return check;

@@ -33,7 +33,8 @@ struct BareFloorParams {
 };
 
 struct BareFloorCheck {
-  bool looked = false;  // verified, upright, enabled, a map (maps_only), and the category's shapes cover their footprint
+  // Verified, upright, enabled, a map (maps_only), and the category's shapes cover their footprint.
+  bool looked = false;
   float bare = 0;       // the share of the inner footprint's cells holding floor and nothing above it
   float max_bare = 0;   // BareFloorParams::max_bare
   bool bareFloor() const { return looked && bare >= max_bare; }

@@ -44,7 +44,8 @@ float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float 
   const float cell = std::max(params.level_cell, 1e-3f);
   const int nx = std::max(1, static_cast<int>(std::lround(width / cell)));
   const int ny = std::max(1, static_cast<int>(std::lround(depth / cell)));
-  std::vector<float> highest(static_cast<size_t>(nx) * static_cast<size_t>(ny), -std::numeric_limits<float>::infinity());
+  constexpr float kNone = -std::numeric_limits<float>::infinity();
+  std::vector<float> highest(static_cast<size_t>(nx) * static_cast<size_t>(ny), kNone);
   for (const auto& p : points) {
     if (p.z() <= params.body_from || p.z() >= top + params.level_over) continue;
     const float u = (p.x() + width / 2) / width, v = (p.y() + depth / 2) / depth;

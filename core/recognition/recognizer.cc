@@ -196,9 +196,9 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 // mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
 // table's box becomes its measured top, and one outside the footprint prior goes to
 // result.rejected, as does any other whose seat-height run is short (seat_run.h) or over whose top
-// the scene goes on (open_top.h). Any category's hypothesis with bare floor in the middle of its
-// footprint goes there too (bare_floor.h). A couch over a level top (open_top.h) is refuted: it is rejected
-// after the answers per object are chosen (selectHypotheses).
+// the scene goes on (open_top.h). Any category's hypothesis in a map with bare floor in the middle
+// of its footprint goes there too (bare_floor.h). A couch over a level top (open_top.h) is
+// refuted: it is rejected after the answers per object are chosen (selectHypotheses).
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
