@@ -51,12 +51,7 @@ BareFloorCheck checkBareFloor(const VerificationScene& scene, const Hypothesis& 
   check.max_bare = params.max_bare;
   const float top = local.top() - local.floor_z;
   Cells cells(local.box.size.x(), local.box.size.y(), params);
-  for (const auto& p : scene.points) {
-    const float dx = p.x() - local.box.center.x(), dy = p.y() - local.box.center.y();
-    const Eigen::Vector3f along(local.cos_yaw * dx + local.sin_yaw * dy, -local.sin_yaw * dx + local.cos_yaw * dy,
-                                p.z() - local.floor_z);
-    cells.add(along, top, params);
-  }
+  for (const auto& p : scene.points) cells.add(local.boxFrame(p), top, params);
   check.bare = cells.share(1);
   return check;
 }

@@ -5,8 +5,9 @@
 // open: there the scene measures the floor in the middle of the box with nothing above it. Each
 // verified, upright hypothesis in a map is dropped when max_bare or more of the cells of its inner
 // footprint hold measured floor and no measured point above it, up to over its top. Floor seen
-// under a couch on legs lies under its seat, so it does not count. Only for a category each of whose training
-// shapes covers its own inner footprint (a category a user trains on coat stands does not). Like
+// under a couch on legs lies under its seat, so it does not count. Only for a category each of
+// whose training shapes covers its own inner footprint (a category a user trains on coat stands
+// does not). Like
 // the open top, a check of what supports what (Silberman, Hoiem, Kohli and Fergus, "Indoor
 // segmentation and support inference from RGBD images", ECCV 2012).
 #include <vector>

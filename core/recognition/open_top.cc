@@ -16,13 +16,10 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   check.max_share = params.max_share;
   check.min_upper = params.min_upper;
   check.max_level = params.max_level;
-  std::vector<Eigen::Vector3f> footprint;  // (along the box's width, along its depth, height)
+  std::vector<Eigen::Vector3f> footprint;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
-    if (params.max_level > 0 && local.overFootprint(p)) {
-      const float dx = p.x() - local.box.center.x(), dy = p.y() - local.box.center.y();
-      footprint.emplace_back(local.cos_yaw * dx + local.sin_yaw * dy, -local.sin_yaw * dx + local.cos_yaw * dy, height);
-    }
+    if (params.max_level > 0 && local.overFootprint(p)) footprint.push_back(local.boxFrame(p));
     if (height > params.upper_from && height < params.upper_to && local.overFootprint(p)) {
       ++check.upper;
     }

@@ -143,12 +143,17 @@ struct SceneBox {
   float floor_z = 0;
   float cos_yaw = 1, sin_yaw = 0;
   float top() const { return box.center.z() + box.size.z() / 2; }
+  // `p` (VerificationScene::points' frame) in the box's own: along its width and its depth from
+  // its centre, and its height above the floor.
+  Eigen::Vector3f boxFrame(const Eigen::Vector3f& p) const {
+    const float dx = p.x() - box.center.x(), dy = p.y() - box.center.y();
+    return {cos_yaw * dx + sin_yaw * dy, -sin_yaw * dx + cos_yaw * dy, p.z() - floor_z};
+  }
   // Whether `p` (VerificationScene::points' frame) lies over the footprint, its sides shrunk to
   // `share` of theirs.
   bool overFootprint(const Eigen::Vector3f& p, float share = 1.0f) const {
-    const float dx = p.x() - box.center.x(), dy = p.y() - box.center.y();
-    return std::abs(cos_yaw * dx + sin_yaw * dy) <= share * box.size.x() / 2 &&
-           std::abs(-sin_yaw * dx + cos_yaw * dy) <= share * box.size.y() / 2;
+    const Eigen::Vector3f q = boxFrame(p);
+    return std::abs(q.x()) <= share * box.size.x() / 2 && std::abs(q.y()) <= share * box.size.y() / 2;
   }
 };
 
