@@ -63,14 +63,14 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.verification.maps_in_3d = recognition.maps_in_3d;
   options.verification.icp_iterations = recognition.icp_iterations;
   options.verification.fit_terms = recognition.fit_terms;
-  options.top_extent.enabled = recognition.top_extent;
-  options.top_extent.footprint_prior = recognition.footprint_prior;
-  options.top_extent.require_top = recognition.require_top;
-  options.seat_run.enabled = recognition.seat_run;
-  options.open_top.enabled = recognition.open_top;
-  if (!recognition.upper_part) options.open_top.min_upper = 0;
-  if (!recognition.level_top) options.open_top.max_level = 0;
-  options.bare_floor.enabled = recognition.bare_floor;
+  options.scene_checks.top_extent.enabled = recognition.top_extent;
+  options.scene_checks.top_extent.footprint_prior = recognition.footprint_prior;
+  options.scene_checks.top_extent.require_top = recognition.require_top;
+  options.scene_checks.seat_run.enabled = recognition.seat_run;
+  options.scene_checks.open_top.enabled = recognition.open_top;
+  if (!recognition.upper_part) options.scene_checks.open_top.min_upper = 0;
+  if (!recognition.level_top) options.scene_checks.open_top.max_level = 0;
+  options.scene_checks.bare_floor.enabled = recognition.bare_floor;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -130,12 +130,6 @@ std::vector<std::vector<Activation>> activateCodewords(const Model& model, const
   return activations;
 }
 
-// How far outside what the category's training objects measured a hypothesis may be and still
-// pass a prior: the vote height test's tolerance and a bin.
-float priorSlack(const Model& model, const CategoryModel& category) {
-  return model.voting.height_tolerance + category.bin_size;
-}
-
 // Whether a peak's centre is at a height above the floor the category's training objects had
 // theirs, give or take the priors' slack.
 bool withinHeightPrior(const Hypothesis& peak, const CategoryModel& category, const Features& features, float slack) {
@@ -193,12 +187,10 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
 
 // Default preset: each category's peaks merged to one per object, then verified against the
 // scene, and their confidences made again with the fit. A hypothesis whose agreeing surface is
-// mostly another's of its category (their boxes overlap too little to be merged) is dropped. A
-// table's box becomes its measured top, and one outside the footprint prior goes to
-// result.rejected, as does any other whose seat-height run is short (seat_run.h) or over whose top
-// the scene goes on (open_top.h). Any category's hypothesis in a map with bare floor in the middle
-// of its footprint goes there too (bare_floor.h). A couch over a level top (open_top.h) is
-// refuted: it is rejected after the answers per object are chosen (selectHypotheses).
+// mostly another's of its category (their boxes overlap too little to be merged) is dropped. The
+// scene's checks (scene_checks.h) send the hypotheses they contradict to result.rejected and mark
+// the ones they refute, which are rejected after the answers per object are chosen
+// (selectHypotheses).
 void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
                  const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
@@ -214,36 +206,18 @@ void verifyPeaks(const Model& model, const Plan& plan, const Features& features,
     if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity, options.suppression);
     verifyHypotheses(view, model, own, options.verification, options.should_stop);
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
-    const bool flat = options.top_extent.enabled && flatTopped(category, options.top_extent);
-    const std::optional<float> training_run = flat ? std::nullopt : trainingSeatRun(category, options.seat_run);
-    OpenTopParams open_top = options.open_top;
-    if (!flat && !upperPartTrained(category, open_top)) open_top.min_upper = 0;
-    if (!flat && !stepTopTrained(category, open_top)) open_top.max_level = 0;
-    const bool covering = footprintCoveredTrained(category, options.bare_floor);
+    const SceneChecks checks(model, category, options.scene_checks);
     for (auto& h : own) {
       if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
       h.confidence = plan.confidence[s](h);
       if (h.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
-      if (flat) {
-        const TopFound top = extendToTop(view, h, options.top_extent);
-        if ((options.top_extent.require_top && top == TopFound::kMissing) ||
-            (options.top_extent.footprint_prior &&
-             !withinFootprintPrior(h, category, to_gravity, priorSlack(model, category))) ||
-            checkBareFloor(view, h, covering, options.bare_floor).bareFloor()) {
-          h.passed_selection = false;
-          result.rejected.push_back(std::move(h));
-          continue;
-        }
-      } else {
-        const bool short_run = checkSeatRun(view, h, training_run, options.seat_run).tooShort();
-        const OpenTopCheck top = short_run ? OpenTopCheck{} : checkOpenTop(view, h, open_top);
-        if (short_run || top.contradicted() || checkBareFloor(view, h, covering, options.bare_floor).bareFloor()) {
-          h.passed_selection = false;
-          result.rejected.push_back(std::move(h));
-          continue;
-        }
-        h.refuted = top.level();
+      const SceneVerdict verdict = checks(view, h, to_gravity);
+      if (verdict == SceneVerdict::kRejected) {
+        h.passed_selection = false;
+        result.rejected.push_back(std::move(h));
+        continue;
       }
+      h.refuted = verdict == SceneVerdict::kRefuted;
       verified.push_back(std::move(h));
     }
   }

@@ -17,11 +17,8 @@
 #include "core/recognition/box_selection.h"
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
-#include "core/recognition/bare_floor.h"
-#include "core/recognition/open_top.h"
-#include "core/recognition/seat_run.h"
+#include "core/recognition/scene_checks.h"
 #include "core/recognition/suppression.h"
-#include "core/recognition/top_extent.h"
 #include "core/recognition/verification.h"
 #include "core/recognition/voting.h"
 
@@ -58,20 +55,12 @@ struct RecognitionOptions {
   // box becomes the best fitting shape's.
   bool verify = true;
   VerificationParams verification;
-  // Default preset, verified hypotheses of flat-topped categories (tables): the box spans the
-  // scene's top surface there rather than the fitted shape, and a top deeper or shallower than
-  // the training tables' is rejected (top_extent.h).
-  TopExtentParams top_extent;
-  // Default preset, verified hypotheses of the other categories: one whose measured surface at seat
-  // height runs along its long side less than half as far as its category's shortest training
-  // shape's is rejected (seat_run.h).
-  SeatRunParams seat_run;
-  // Default preset, the same hypotheses: one with measured surface standing over its top, more than
-  // a fifth of the points over its inner footprint, is rejected (open_top.h).
-  OpenTopParams open_top;
-  // Default preset, verified hypotheses of every category whose shapes cover their footprint: one
-  // with bare floor in the middle of its footprint is rejected (bare_floor.h).
-  BareFloorParams bare_floor;
+  // Default preset, verified hypotheses: checked against the scene around them (scene_checks.h).
+  // A table's box spans the scene's top surface there; a table without a top or deeper or
+  // shallower than the training tables', a chair or couch with too short a run at seat height or
+  // with surface standing over its top, and any hypothesis in a map with bare floor in the middle
+  // of its footprint are rejected; a couch over a level top is refuted.
+  SceneCheckParams scene_checks;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)

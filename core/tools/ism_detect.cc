@@ -120,12 +120,12 @@ int main(int argc, char** argv) {
     }
     options.box_selection = !no_box_selection;
     options.verify = !no_verify;
-    options.top_extent.enabled = !no_top_extent;
-    options.seat_run.enabled = !no_seat_run;
-    options.open_top.enabled = !no_open_top;
-    if (no_upper_part) options.open_top.min_upper = 0;
-    if (no_level_top) options.open_top.max_level = 0;
-    options.bare_floor.enabled = !no_bare_floor;
+    options.scene_checks.top_extent.enabled = !no_top_extent;
+    options.scene_checks.seat_run.enabled = !no_seat_run;
+    options.scene_checks.open_top.enabled = !no_open_top;
+    if (no_upper_part) options.scene_checks.open_top.min_upper = 0;
+    if (no_level_top) options.scene_checks.open_top.max_level = 0;
+    options.scene_checks.bare_floor.enabled = !no_bare_floor;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 
