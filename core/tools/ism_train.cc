@@ -96,6 +96,10 @@ int main(int argc, char** argv) {
                "calibrate on the rendered frames only, not also on them as unorganized point samples");
   app.add_flag("--no-verification", no_shapes,
                "keep no training shapes, so that recognition does not verify hypotheses against the scene's depth");
+  bool no_calibration_checks = false;
+  app.add_flag("--no-calibration-scene-checks", no_calibration_checks,
+               "calibrate on every verified peak of the rendered rooms, not only on those that pass recognition's "
+               "checks of the scene around them (scene_checks.h)");
   bool no_shape_profile = false;
   app.add_flag("--no-shape-profile", no_shape_profile,
                "calibrate confidence on the verification's fit alone, not also on how the measured surface's "
@@ -168,6 +172,7 @@ int main(int argc, char** argv) {
   if (no_cloud_calibration) params.calibration.clouds = false;
   if (no_shapes) params.shape_spacing = 0;
   if (no_shape_profile) params.calibration.shape_profile = false;
+  if (no_calibration_checks) params.calibration.scene_checks = false;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
     std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";

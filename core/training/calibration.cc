@@ -12,6 +12,7 @@
 #include "core/common/upright_box.h"
 #include "core/frontend/frontend.h"
 #include "core/recognition/recognizer.h"
+#include "core/recognition/scene_checks.h"
 #include "core/recognition/suppression.h"
 #include "core/recognition/top_extent.h"
 #include "core/recognition/verification.h"
@@ -147,7 +148,7 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
 // positive, every other peak that is not another peak of that object a negative.
 void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
-                const VerificationScene& view, bool cloud, const VerificationParams& verification,
+                const VerificationScene& view, bool cloud, const VerificationParams& verification, bool scene_checks,
                 std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
@@ -160,6 +161,14 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
     own.erase(std::remove_if(own.begin(), own.end(),
                              [](const Hypothesis& h) { return h.verification && h.verification->duplicate(); }),
               own.end());
+    if (scene_checks) {
+      // What recognition would reject or refute never answers, so it is no sample of what an
+      // answer's confidence means; a rejected peak does not take its object from the next one.
+      const SceneChecks checks(model, model.categories[c], SceneCheckParams{});
+      own.erase(std::remove_if(own.begin(), own.end(),
+                               [&](Hypothesis& h) { return checks(view, h, to_gravity) != SceneVerdict::kKept; }),
+                own.end());
+    }
     std::vector<bool> matched(room.categories.size(), false);
     for (const auto& p : own) {  // most confident, i.e. highest score, first
       bool positive = false;
@@ -256,7 +265,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
           category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
           auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
           const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, found);
+          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, cp.scene_checks, found);
         }
       };
       look(room.scene.scene, false);

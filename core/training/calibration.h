@@ -7,7 +7,8 @@
 // floor, walls, boxes and the manifest's background meshes, furniture the model was not trained
 // on (k-fold over the training objects, votes of the held-out fold left out), cameras at a
 // robot's and a person's height.
-// Every peak of a category is labelled by whether an object of that category is there; a
+// Every peak of a category that passes recognition's checks of the scene around it
+// (scene_checks.h) is labelled by whether an object of that category is there; a
 // logistic regression over the log score, the log score per supporting keypoint and, where the
 // model keeps training shapes, the verification's fit and shape profile distance gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
 #include <random>

@@ -39,6 +39,11 @@ struct CalibrationParams {
   // The terms of verification's fit the rooms' peaks are verified with (ism-train --fit-terms);
   // recognition is to use the same.
   FitTerms fit_terms = FitTerms::kBoth;
+  // Whether the rooms' verified peaks go through recognition's checks of the scene around them
+  // (scene_checks.h) before they are labelled, so that the confidence is the chance that a peak
+  // which passed them is right, as the ones recognition answers have; false labels every verified
+  // peak (ism-train --no-calibration-scene-checks).
+  bool scene_checks = true;
   uint32_t seed = 7;
 };
 

@@ -28,8 +28,9 @@ mkdir -p "$work"
 # top keep their fitted shapes' boxes, and rows before the footprint prior keep every table top.
 # Rows before the shape profile calibrate on the verification's fit alone; rows before the seat run
 # keep chairs and couches whatever their run at seat height, rows before the open top whatever stands
-# over them, rows before the bare floor whatever floor lies in their footprint.
-contours="--surface-keypoints 0 --height-weighting lost --no-shape-profile"
+# over them, rows before the bare floor whatever floor lies in their footprint. Rows before the
+# checked calibration calibrate on every verified peak of the rooms.
+contours="--surface-keypoints 0 --height-weighting lost --no-shape-profile --no-calibration-scene-checks"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
 fine="$near --seed-front-end --no-cloud-calibration --no-verification"
@@ -51,20 +52,21 @@ steps=(
   "background|$contours --calibration-background 0|--preset default --map-verification viewpoint --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ codewords weighed against 21 background meshes (manifest rows of category background)"
   "background-rooms|$contours|--preset default --map-verification viewpoint --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ up to 2 of the background meshes in each calibration room"
   "maps|=background-rooms|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
-  "surface-keypoints|--height-weighting lost --no-shape-profile|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
-  "height-normalized|--no-shape-profile|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's"
+  "surface-keypoints|--height-weighting lost --no-shape-profile --no-calibration-scene-checks|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
+  "height-normalized|--no-shape-profile --no-calibration-scene-checks|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's"
   "table-top|=height-normalized|--preset default --no-footprint-prior --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ tables' boxes spanning the scene's table top, not their fitted shape"
   "footprint|=height-normalized|--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ tables whose top is deeper or shallower than every training table's rejected"
-  "shape-profile||--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ the measured surface's profile over height and distance from the box's axis against the training shapes' in the confidence, but for flat-topped categories"
+  "shape-profile|--no-calibration-scene-checks|--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ the measured surface's profile over height and distance from the box's axis against the training shapes' in the confidence, but for flat-topped categories"
   "top-required|=shape-profile|--preset default --no-seat-run --no-open-top --no-bare-floor|+ tables whose top the scene does not show dropped"
   "seat-run|=shape-profile|--preset default --no-open-top --no-bare-floor|+ chairs and couches whose measured surface at seat height runs shorter than half their category's shortest training shape's dropped"
   "open-top|=shape-profile|--preset default --no-upper-part --no-level-top --no-bare-floor|+ chairs and couches with measured surface standing over their top (over a fifth of the points over their inner footprint, 0.1-0.6 m above it) dropped"
   "upper-part|=shape-profile|--preset default --no-level-top --no-bare-floor|+ chairs and couches with no measured point over their footprint 0.55-0.75 m above the floor, where a backrest is, dropped"
   "level-top|=shape-profile|--preset default --no-bare-floor|+ couches over a level top (6 in 10 of their footprint's 8 cm cells highest within one 10 cm band, as a bed's mattress) refuted: no answer for that object"
-  "bare-floor|=shape-profile|--preset default|+ any hypothesis in a map with bare floor (measured floor, nothing above it) in 3 in 10 of the cells of its inner footprint dropped (the default)"
+  "bare-floor|=shape-profile|--preset default|+ any hypothesis in a map with bare floor (measured floor, nothing above it) in 3 in 10 of the cells of its inner footprint dropped"
+  "checked-calibration||--preset default|+ the confidence calibrated on the rendered rooms' peaks that pass these checks of the scene, as the answers have (the default)"
   "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|the default without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
   "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|the default without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
-  "icp|=shape-profile|--preset default --icp 8|the default with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
+  "icp|=checked-calibration|--preset default --icp 8|the default with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
