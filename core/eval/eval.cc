@@ -71,6 +71,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   if (!recognition.upper_part) options.scene_checks.open_top.min_upper = 0;
   if (!recognition.level_top) options.scene_checks.open_top.max_level = 0;
   options.scene_checks.bare_floor.enabled = recognition.bare_floor;
+  options.scene_checks.under_top.enabled = recognition.under_top;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

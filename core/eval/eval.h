@@ -49,6 +49,7 @@ struct EvalRecognition {
   bool upper_part = true;      // OpenTopParams::min_upper above 0
   bool level_top = true;       // OpenTopParams::max_level above 0
   bool bare_floor = true;      // BareFloorParams::enabled
+  bool under_top = true;       // UnderTopParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

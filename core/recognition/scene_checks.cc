@@ -20,9 +20,10 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
   if (flat_) {
     const TopFound top = extendToTop(scene, h, params_.top_extent);
     const bool topless = params_.top_extent.require_top && top == TopFound::kMissing;
+    const bool closed = top == TopFound::kFound && checkUnderTop(scene, h, params_.under_top).closed();
     const bool off_prior = params_.top_extent.footprint_prior &&
                            !withinFootprintPrior(h, category_, to_gravity, prior_slack_);
-    if (topless || off_prior || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
+    if (topless || closed || off_prior || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
       return SceneVerdict::kRejected;
     }
     return SceneVerdict::kKept;

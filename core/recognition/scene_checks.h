@@ -1,7 +1,7 @@
 #pragma once
 // The scene's checks of one category's verified hypotheses, in the order recognition applies
-// them after verification: a table's box becomes its measured top and the top must be there and
-// of a training table's depth (top_extent.h); a chair's or couch's run at seat height must be
+// them after verification: a table's box becomes its measured top, the top must be there and of
+// a training table's depth (top_extent.h), and something must be seen under it (under_top.h); a chair's or couch's run at seat height must be
 // long enough (seat_run.h) and nothing may stand over its top (open_top.h); no hypothesis in a
 // map may have bare floor in the middle of its footprint (bare_floor.h); a couch over a level top
 // is refuted (open_top.h). Recognition and the calibration share them: a confidence is the chance
@@ -16,12 +16,14 @@
 #include "core/recognition/open_top.h"
 #include "core/recognition/seat_run.h"
 #include "core/recognition/top_extent.h"
+#include "core/recognition/under_top.h"
 #include "core/recognition/verification.h"
 
 namespace ism {
 
 struct SceneCheckParams {
   TopExtentParams top_extent;
+  UnderTopParams under_top;
   SeatRunParams seat_run;
   OpenTopParams open_top;
   BareFloorParams bare_floor;

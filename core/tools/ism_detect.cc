@@ -82,6 +82,10 @@ int main(int argc, char** argv) {
   bool no_bare_floor = false;
   app.add_flag("--no-bare-floor", no_bare_floor,
                "default preset: keep hypotheses with bare floor in the middle of their footprint");
+  bool no_under_top = false;
+  app.add_flag("--no-under-top", no_under_top,
+               "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
+               "cabinet's");
   bool no_level_top = false;
   app.add_flag("--no-level-top", no_level_top,
                "default preset: keep couches over whose footprint the measured surface is one level, as a bed's "
@@ -126,6 +130,7 @@ int main(int argc, char** argv) {
     if (no_upper_part) options.scene_checks.open_top.min_upper = 0;
     if (no_level_top) options.scene_checks.open_top.max_level = 0;
     options.scene_checks.bare_floor.enabled = !no_bare_floor;
+    options.scene_checks.under_top.enabled = !no_under_top;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 

@@ -29,7 +29,8 @@ mkdir -p "$work"
 # Rows before the shape profile calibrate on the verification's fit alone; rows before the seat run
 # keep chairs and couches whatever their run at seat height, rows before the open top whatever stands
 # over them, rows before the bare floor whatever floor lies in their footprint. Rows before the
-# checked calibration calibrate on every verified peak of the rooms.
+# checked calibration calibrate on every verified peak of the rooms; rows before under the top keep
+# tables with nothing measured under their top.
 contours="--surface-keypoints 0 --height-weighting lost --no-shape-profile --no-calibration-scene-checks"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
@@ -54,15 +55,16 @@ steps=(
   "maps|=background-rooms|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ maps (fused rooms) verified in 3D, not on a depth buffer from their made-up viewpoint"
   "surface-keypoints|--height-weighting lost --no-shape-profile --no-calibration-scene-checks|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ keypoints on the surfaces off the floor and walls, one per 9 cm cube, besides their contours"
   "height-normalized|--no-shape-profile --no-calibration-scene-checks|--preset default --no-top-extent --no-seat-run --no-open-top --no-bare-floor|+ the height test's weight spread over the votes at the keypoint's height, not over all of its codeword's"
-  "table-top|=height-normalized|--preset default --no-footprint-prior --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ tables' boxes spanning the scene's table top, not their fitted shape"
-  "footprint|=height-normalized|--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ tables whose top is deeper or shallower than every training table's rejected"
-  "shape-profile|--no-calibration-scene-checks|--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor|+ the measured surface's profile over height and distance from the box's axis against the training shapes' in the confidence, but for flat-topped categories"
-  "top-required|=shape-profile|--preset default --no-seat-run --no-open-top --no-bare-floor|+ tables whose top the scene does not show dropped"
-  "seat-run|=shape-profile|--preset default --no-open-top --no-bare-floor|+ chairs and couches whose measured surface at seat height runs shorter than half their category's shortest training shape's dropped"
-  "open-top|=shape-profile|--preset default --no-upper-part --no-level-top --no-bare-floor|+ chairs and couches with measured surface standing over their top (over a fifth of the points over their inner footprint, 0.1-0.6 m above it) dropped"
-  "upper-part|=shape-profile|--preset default --no-level-top --no-bare-floor|+ chairs and couches with no measured point over their footprint 0.55-0.75 m above the floor, where a backrest is, dropped"
-  "level-top|=shape-profile|--preset default --no-bare-floor|+ couches over a level top (6 in 10 of their footprint's 8 cm cells highest within one 10 cm band, as a bed's mattress) refuted: no answer for that object"
-  "bare-floor|=shape-profile|--preset default|+ any hypothesis in a map with bare floor (measured floor, nothing above it) in 3 in 10 of the cells of its inner footprint dropped"
+  "table-top|=height-normalized|--preset default --no-footprint-prior --keep-topless --no-seat-run --no-open-top --no-bare-floor --no-under-top|+ tables' boxes spanning the scene's table top, not their fitted shape"
+  "footprint|=height-normalized|--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor --no-under-top|+ tables whose top is deeper or shallower than every training table's rejected"
+  "shape-profile|--no-calibration-scene-checks|--preset default --keep-topless --no-seat-run --no-open-top --no-bare-floor --no-under-top|+ the measured surface's profile over height and distance from the box's axis against the training shapes' in the confidence, but for flat-topped categories"
+  "top-required|=shape-profile|--preset default --no-seat-run --no-open-top --no-bare-floor --no-under-top|+ tables whose top the scene does not show dropped"
+  "seat-run|=shape-profile|--preset default --no-open-top --no-bare-floor --no-under-top|+ chairs and couches whose measured surface at seat height runs shorter than half their category's shortest training shape's dropped"
+  "open-top|=shape-profile|--preset default --no-upper-part --no-level-top --no-bare-floor --no-under-top|+ chairs and couches with measured surface standing over their top (over a fifth of the points over their inner footprint, 0.1-0.6 m above it) dropped"
+  "upper-part|=shape-profile|--preset default --no-level-top --no-bare-floor --no-under-top|+ chairs and couches with no measured point over their footprint 0.55-0.75 m above the floor, where a backrest is, dropped"
+  "level-top|=shape-profile|--preset default --no-bare-floor --no-under-top|+ couches over a level top (6 in 10 of their footprint's 8 cm cells highest within one 10 cm band, as a bed's mattress) refuted: no answer for that object"
+  "bare-floor|=shape-profile|--preset default --no-under-top|+ any hypothesis in a map with bare floor (measured floor, nothing above it) in 3 in 10 of the cells of its inner footprint dropped"
+  "under-top|=shape-profile|--preset default|+ tables under whose measured top nothing is measured (under 1 in 10 of the cells of its inner footprint), as under a bed's or a cabinet's, dropped"
   "checked-calibration||--preset default|+ the confidence calibrated on the rendered rooms' peaks that pass these checks of the scene, as the answers have (the default)"
   "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|the default without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
   "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|the default without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
