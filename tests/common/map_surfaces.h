@@ -20,4 +20,13 @@ inline void wall(std::vector<Eigen::Vector3f>& points, float x0, float x1, float
   }
 }
 
+// A couch's top surfaces, 2 x 0.9 m about x = 0, its front at y - 0.45 m: a seat at 0.45 m over the
+// front 0.65 m, the back's top at 0.85 m, arms to 0.65 m.
+inline void couchTop(std::vector<Eigen::Vector3f>& points, float y) {
+  plate(points, -0.85f, 0.85f, y - 0.45f, y + 0.2f, 0.45f);  // the seat
+  plate(points, -1.0f, 1.0f, y + 0.2f, y + 0.45f, 0.85f);    // the back's top
+  plate(points, -1.0f, -0.85f, y - 0.45f, y + 0.2f, 0.65f);  // the arms
+  plate(points, 0.85f, 1.0f, y - 0.45f, y + 0.2f, 0.65f);
+}
+
 }  // namespace ism::testing

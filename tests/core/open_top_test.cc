@@ -118,10 +118,7 @@ VerificationScene couchAndBed() {
   view.floor_z = 0.0f;
   view.map = true;
   plate(view.points, -3.0f, 3.0f, -3.5f, 3.5f, 0.0f);
-  plate(view.points, -0.85f, 0.85f, -2.45f, -1.8f, 0.45f);  // the seat
-  plate(view.points, -1.0f, 1.0f, -1.8f, -1.55f, 0.85f);   // the back's top
-  plate(view.points, -1.0f, -0.85f, -2.45f, -1.8f, 0.65f);  // the arms
-  plate(view.points, 0.85f, 1.0f, -2.45f, -1.8f, 0.65f);
+  testing::couchTop(view.points, -2.0f);
   plate(view.points, -1.0f, 1.0f, 1.2f, 2.8f, 0.6f);        // the mattress
   return view;
 }
@@ -169,10 +166,7 @@ TEST(OpenTop, TheLevelShareCountsTheFootprintsCells) {
 TEST(OpenTop, LevelTopsOnlyForCategoriesWhoseShapesRiseOverTheSeat) {
   TrainingObject couch, chair, ottoman;
   couch.size = {2.0f, 0.9f, 0.85f};
-  plate(couch.surface, -0.85f, 0.85f, -0.45f, 0.2f, 0.45f);
-  plate(couch.surface, -1.0f, 1.0f, 0.2f, 0.45f, 0.85f);
-  plate(couch.surface, -1.0f, -0.85f, -0.45f, 0.2f, 0.65f);
-  plate(couch.surface, 0.85f, 1.0f, -0.45f, 0.2f, 0.65f);
+  testing::couchTop(couch.surface, 0.0f);
   chair.size = {0.5f, 0.5f, 0.9f};  // the seat covers most of a chair's footprint
   plate(chair.surface, -0.25f, 0.25f, -0.25f, 0.17f, 0.45f);
   plate(chair.surface, -0.25f, 0.25f, 0.17f, 0.25f, 0.9f);

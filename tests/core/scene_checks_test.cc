@@ -22,10 +22,7 @@ using testing::wall;
 TrainingObject couchShape() {
   TrainingObject couch;
   couch.size = {2.0f, 0.9f, 0.85f};
-  plate(couch.surface, -0.85f, 0.85f, -0.45f, 0.2f, 0.45f);
-  plate(couch.surface, -1.0f, 1.0f, 0.2f, 0.45f, 0.85f);
-  plate(couch.surface, -1.0f, -0.85f, -0.45f, 0.2f, 0.65f);
-  plate(couch.surface, 0.85f, 1.0f, -0.45f, 0.2f, 0.65f);
+  testing::couchTop(couch.surface, 0.0f);
   wall(couch.surface, -1.0f, 1.0f, -0.45f, 0.0f, 0.45f);
   return couch;
 }
@@ -45,10 +42,7 @@ VerificationScene room() {
   view.floor_z = 0.0f;
   view.map = true;
   plate(view.points, -3.0f, 4.0f, -3.5f, 3.5f, 0.0f);
-  plate(view.points, -0.85f, 0.85f, -2.45f, -1.8f, 0.45f);  // the seat
-  plate(view.points, -1.0f, 1.0f, -1.8f, -1.55f, 0.85f);   // the back's top
-  plate(view.points, -1.0f, -0.85f, -2.45f, -1.8f, 0.65f);  // the arms
-  plate(view.points, 0.85f, 1.0f, -2.45f, -1.8f, 0.65f);
+  testing::couchTop(view.points, -2.0f);
   wall(view.points, -1.0f, 1.0f, -2.45f, 0.0f, 0.45f);      // the seat's front, down to the floor
   plate(view.points, -1.0f, 1.0f, 1.2f, 2.8f, 0.6f);        // the mattress
   wall(view.points, -1.0f, 1.0f, 1.2f, 0.0f, 0.6f);
