@@ -29,11 +29,13 @@ UnderTopCheck checkUnderTop(const VerificationScene& scene, const Hypothesis& hy
   const SceneBox local = sceneBox(scene, hypothesis);
   check.looked = true;
   check.min_open = params.min_open;
-  std::vector<Eigen::Vector3f> points;
+  const float top = local.top() - local.floor_z;
+  std::vector<Eigen::Vector3f> under;  // only what can count: below the top, in the box's frame
   for (const auto& p : scene.points) {
-    if (local.overFootprint(p, params.inner)) points.push_back(local.boxFrame(p));
+    const Eigen::Vector3f q = local.boxFrame(p);
+    if (q.z() <= top - params.below) under.push_back(q);
   }
-  check.open = openUnderShare(points, local.box.size.x(), local.box.size.y(), local.top() - local.floor_z, params);
+  check.open = openUnderShare(under, local.box.size.x(), local.box.size.y(), top, params);
   return check;
 }
 

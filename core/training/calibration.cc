@@ -146,10 +146,11 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
 }
 
 // Labels one room's peaks, category by category: the best peak on an object of its category is a
-// positive, every other peak that is not another peak of that object a negative.
+// positive, every other peak that is not another peak of that object a negative. `checks`: each
+// category's scene checks, or empty to label every verified peak.
 void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
-                const VerificationScene& view, bool cloud, const VerificationParams& verification, bool scene_checks,
-                std::vector<CalibrationSample>& out) {
+                const VerificationScene& view, bool cloud, const VerificationParams& verification,
+                const std::vector<SceneChecks>& checks, std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -161,12 +162,11 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
     own.erase(std::remove_if(own.begin(), own.end(),
                              [](const Hypothesis& h) { return h.verification && h.verification->duplicate(); }),
               own.end());
-    if (scene_checks) {
+    if (!checks.empty()) {
       // What recognition would reject or refute never answers, so it is no sample of what an
       // answer's confidence means; a rejected peak does not take its object from the next one.
-      const SceneChecks checks(model, model.categories[c], SceneCheckParams{});
       own.erase(std::remove_if(own.begin(), own.end(),
-                               [&](Hypothesis& h) { return checks(view, h, to_gravity) != SceneVerdict::kKept; }),
+                               [&](Hypothesis& h) { return checks[c](view, h, to_gravity) != SceneVerdict::kKept; }),
                 own.end());
     }
     std::vector<bool> matched(room.categories.size(), false);
@@ -241,6 +241,11 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     }
     if (candidates.empty()) continue;
     const Model fold_model = foldModel(model, votes, held_out);
+    std::vector<SceneChecks> checks;  // what they need from the fold's shapes, worked out once
+    if (cp.scene_checks) {
+      checks.reserve(fold_model.categories.size());
+      for (const auto& category : fold_model.categories) checks.emplace_back(fold_model, category, SceneCheckParams{});
+    }
     RecognitionOptions options;
     options.strategy = strategy;
     options.min_confidence = 0;
@@ -265,7 +270,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
           category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
           auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
           const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, cp.scene_checks, found);
+          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, checks, found);
         }
       };
       look(room.scene.scene, false);
