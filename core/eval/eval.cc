@@ -72,6 +72,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   if (!recognition.level_top) options.scene_checks.open_top.max_level = 0;
   options.scene_checks.bare_floor.enabled = recognition.bare_floor;
   options.scene_checks.under_top.enabled = recognition.under_top;
+  options.scene_checks.seat_area.enabled = recognition.seat_area;
   return recognizeFeatures(model, features, options, scene).hypotheses;
 }
 

@@ -50,6 +50,7 @@ struct EvalRecognition {
   bool level_top = true;       // OpenTopParams::max_level above 0
   bool bare_floor = true;      // BareFloorParams::enabled
   bool under_top = true;       // UnderTopParams::enabled
+  bool seat_area = true;       // SeatAreaParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

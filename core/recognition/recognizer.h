@@ -58,8 +58,9 @@ struct RecognitionOptions {
   // Default preset, verified hypotheses: checked against the scene around them (scene_checks.h).
   // A table's box spans the scene's top surface there; a table without a top, with nothing seen
   // under it, or deeper or shallower than the training tables', a chair or couch with too short a
-  // run at seat height or with surface standing over its top, and any hypothesis in a map with
-  // bare floor in the middle of its footprint are rejected; a couch over a level top is refuted.
+  // run at seat height, with little measured at seat height over its footprint or with surface
+  // standing over its top, and any hypothesis in a map with bare floor in the middle of its
+  // footprint are rejected; a couch over a level top is refuted.
   SceneCheckParams scene_checks;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints

@@ -10,6 +10,7 @@ SceneChecks::SceneChecks(const Model& model, const CategoryModel& category, cons
     : category_(category), params_(params), prior_slack_(priorSlack(model, category)) {
   flat_ = params.top_extent.enabled && flatTopped(category, params.top_extent);
   if (!flat_) training_run_ = trainingSeatRun(category, params.seat_run);
+  seat_area_ = !flat_ && seatAreaTrained(category, params.seat_area);
   if (flat_ || !upperPartTrained(category, params.open_top)) params_.open_top.min_upper = 0;
   if (flat_ || !stepTopTrained(category, params.open_top)) params_.open_top.max_level = 0;
   covering_ = footprintCoveredTrained(category, params.bare_floor);
@@ -28,7 +29,10 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
     }
     return SceneVerdict::kKept;
   }
-  if (checkSeatRun(scene, h, training_run_, params_.seat_run).tooShort()) return SceneVerdict::kRejected;
+  if (checkSeatRun(scene, h, training_run_, params_.seat_run).tooShort() ||
+      checkSeatArea(scene, h, seat_area_, params_.seat_area).bare()) {
+    return SceneVerdict::kRejected;
+  }
   const OpenTopCheck top = checkOpenTop(scene, h, params_.open_top);
   if (top.contradicted() || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
     return SceneVerdict::kRejected;

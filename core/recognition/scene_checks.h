@@ -1,12 +1,13 @@
 #pragma once
 // The scene's checks of one category's verified hypotheses, in the order recognition applies
 // them after verification: a table's box becomes its measured top, the top must be there and of
-// a training table's depth (top_extent.h), and something must be seen under it (under_top.h); a chair's or couch's run at seat height must be
-// long enough (seat_run.h) and nothing may stand over its top (open_top.h); no hypothesis in a
-// map may have bare floor in the middle of its footprint (bare_floor.h); a couch over a level top
-// is refuted (open_top.h). Recognition and the calibration share them: a confidence is the chance
-// that a hypothesis which passed them is right, so the calibration learns it from the peaks that
-// pass them too.
+// a training table's depth (top_extent.h), and something must be seen under it (under_top.h); a
+// chair's or couch's run at seat height must be long enough (seat_run.h), its seat must be
+// measured over its footprint (seat_area.h) and nothing may stand over its top (open_top.h); no
+// hypothesis in a map may have bare floor in the middle of its footprint (bare_floor.h); a couch
+// over a level top is refuted (open_top.h). Recognition and the calibration share them: a
+// confidence is the chance that a hypothesis which passed them is right, so the calibration
+// learns it from the peaks that pass them too.
 #include <Eigen/Core>
 #include <optional>
 
@@ -14,6 +15,7 @@
 #include "core/recognition/bare_floor.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/open_top.h"
+#include "core/recognition/seat_area.h"
 #include "core/recognition/seat_run.h"
 #include "core/recognition/top_extent.h"
 #include "core/recognition/under_top.h"
@@ -25,6 +27,7 @@ struct SceneCheckParams {
   TopExtentParams top_extent;
   UnderTopParams under_top;
   SeatRunParams seat_run;
+  SeatAreaParams seat_area;
   OpenTopParams open_top;
   BareFloorParams bare_floor;
 };
@@ -51,6 +54,7 @@ class SceneChecks {
   float prior_slack_ = 0;
   bool flat_ = false;
   std::optional<float> training_run_;
+  bool seat_area_ = false;
   bool covering_ = false;
 };
 

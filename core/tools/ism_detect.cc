@@ -86,6 +86,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-under-top", no_under_top,
                "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
                "cabinet's");
+  bool no_seat_area = false;
+  app.add_flag("--no-seat-area", no_seat_area,
+               "default preset: keep chairs and couches with little measured at seat height over their footprint, "
+               "as over a desk's legs");
   bool no_level_top = false;
   app.add_flag("--no-level-top", no_level_top,
                "default preset: keep couches over whose footprint the measured surface is one level, as a bed's "
@@ -131,6 +135,7 @@ int main(int argc, char** argv) {
     if (no_level_top) options.scene_checks.open_top.max_level = 0;
     options.scene_checks.bare_floor.enabled = !no_bare_floor;
     options.scene_checks.under_top.enabled = !no_under_top;
+    options.scene_checks.seat_area.enabled = !no_seat_area;
     options.keep_votes = !debug_ply.empty();
     const ism::Model model = ism::loadModel(model_path);
 

@@ -131,6 +131,7 @@ int main(int argc, char** argv) {
   bool no_level_top = false;
   bool no_bare_floor = false;
   bool no_under_top = false;
+  bool no_seat_area = false;
   for (CLI::App* sub : {baseline, real}) {
     sub->add_flag("--no-open-top", no_open_top,
                   "default preset: keep chairs and couches with measured surface standing over their top, or none in "
@@ -146,6 +147,9 @@ int main(int argc, char** argv) {
     sub->add_flag("--no-under-top", no_under_top,
                   "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
                   "cabinet's (under_top.h)");
+    sub->add_flag("--no-seat-area", no_seat_area,
+                  "default preset: keep chairs and couches with little measured at seat height over their footprint, "
+                  "as over a desk's legs (seat_area.h)");
     sub->add_flag("--no-seat-run", no_seat_run,
                   "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far as "
                   "their category's shortest training shape's (seat_run.h)");
@@ -202,6 +206,7 @@ int main(int argc, char** argv) {
       recognition.level_top = !no_level_top;
       recognition.bare_floor = !no_bare_floor;
       recognition.under_top = !no_under_top;
+      recognition.seat_area = !no_seat_area;
       auto result = ism::runBaseline(split, training, recognition);
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
@@ -210,7 +215,7 @@ int main(int argc, char** argv) {
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
                             fit_terms, !keep_topless, !no_seat_run, !no_open_top, !no_upper_part, !no_level_top, !no_bare_floor,
-                            !no_under_top};
+                            !no_under_top, !no_seat_area};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;
