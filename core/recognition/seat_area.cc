@@ -2,24 +2,101 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace ism {
+namespace {
+
+// The inner footprint's cells, x-major.
+struct Cells {
+  float w = 0, d = 0;
+  int nx = 1, ny = 1;
+  Cells(float width, float depth, const SeatAreaParams& params) : w(params.inner * width), d(params.inner * depth) {
+    nx = std::max(1, static_cast<int>(std::ceil(w / params.cell)));
+    ny = std::max(1, static_cast<int>(std::ceil(d / params.cell)));
+  }
+  size_t size() const { return static_cast<size_t>(nx) * static_cast<size_t>(ny); }
+  // The cell holding (x, y) about the footprint's centre, or -1 outside.
+  int of(float x, float y) const {
+    const float u = (x + w / 2) / w, v = (y + d / 2) / d;
+    if (!(u >= 0 && u < 1 && v >= 0 && v < 1)) return -1;
+    return static_cast<int>(u * static_cast<float>(nx)) * ny + static_cast<int>(v * static_cast<float>(ny));
+  }
+  Eigen::Vector2f middle(int i) const {
+    return {-w / 2 + (static_cast<float>(i / ny) + 0.5f) * w / static_cast<float>(nx),
+            -d / 2 + (static_cast<float>(i % ny) + 0.5f) * d / static_cast<float>(ny)};
+  }
+};
+
+// The cells holding a point at seat height.
+std::vector<char> seatCells(const std::vector<Eigen::Vector3f>& points, const Cells& cells, const SeatAreaParams& params) {
+  std::vector<char> seat(cells.size(), 0);
+  if (cells.w <= 0 || cells.d <= 0) return seat;
+  for (const auto& p : points) {
+    if (p.z() < params.from || p.z() > params.to) continue;
+    const int i = cells.of(p.x(), p.y());
+    if (i >= 0) seat[static_cast<size_t>(i)] = 1;
+  }
+  return seat;
+}
+
+// Which cells a single view's sensor (at the origin of scene.points) saw at seat height: the scene
+// is projected on a plane facing the footprint, and each direction keeps the nearest measured
+// depth; a cell's middle at seat height is seen when that depth is not nearer than its own by
+// more than the margin. A direction with nothing measured says nothing.
+std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& local, const Cells& cells,
+                            const SeatAreaParams& params) {
+  std::vector<char> seen(cells.size(), 0);
+  const Eigen::Vector3f centre(local.box.center.x(), local.box.center.y(), local.floor_z + (params.from + params.to) / 2);
+  if (centre.norm() < 1e-3f) return seen;
+  const Eigen::Vector3f forward = centre.normalized();
+  Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ());
+  if (right.norm() < 1e-3f) return seen;  // looking straight down: no seat is hidden from above
+  right.normalize();
+  const Eigen::Vector3f up = right.cross(forward);
+  struct Probe {
+    float a, b, depth;
+  };
+  std::vector<Probe> probes(cells.size());
+  float a0 = std::numeric_limits<float>::max(), a1 = -a0, b0 = a0, b1 = -a0;
+  for (size_t i = 0; i < cells.size(); ++i) {
+    const Eigen::Vector2f m = cells.middle(static_cast<int>(i));
+    const Eigen::Vector3f p(local.box.center.x() + local.cos_yaw * m.x() - local.sin_yaw * m.y(),
+                            local.box.center.y() + local.sin_yaw * m.x() + local.cos_yaw * m.y(), centre.z());
+    const float t = p.dot(forward);
+    if (t <= 0.05f) return seen;  // the footprint reaches behind the sensor
+    probes[i] = {p.dot(right) / t, p.dot(up) / t, t};
+    a0 = std::min(a0, probes[i].a), a1 = std::max(a1, probes[i].a);
+    b0 = std::min(b0, probes[i].b), b1 = std::max(b1, probes[i].b);
+  }
+  const int na = static_cast<int>((a1 - a0) / params.angle) + 1, nb = static_cast<int>((b1 - b0) / params.angle) + 1;
+  std::vector<float> nearest(static_cast<size_t>(na) * static_cast<size_t>(nb), std::numeric_limits<float>::infinity());
+  const auto bin = [&](float a, float b) {
+    const int ia = static_cast<int>(std::floor((a - a0) / params.angle + 0.5f));
+    const int ib = static_cast<int>(std::floor((b - b0) / params.angle + 0.5f));
+    return ia < 0 || ia >= na || ib < 0 || ib >= nb ? -1 : ia * nb + ib;
+  };
+  for (const auto& p : scene.points) {
+    const float t = p.dot(forward);
+    if (t <= 0.05f) continue;
+    const int k = bin(p.dot(right) / t, p.dot(up) / t);
+    if (k >= 0) nearest[static_cast<size_t>(k)] = std::min(nearest[static_cast<size_t>(k)], t);
+  }
+  for (size_t i = 0; i < cells.size(); ++i) {
+    const float t = nearest[static_cast<size_t>(bin(probes[i].a, probes[i].b))];
+    seen[i] = std::isfinite(t) && t >= probes[i].depth - params.margin;
+  }
+  return seen;
+}
+
+}  // namespace
 
 float seatAreaShare(const std::vector<Eigen::Vector3f>& points, float width, float depth,
                     const SeatAreaParams& params) {
-  const float w = params.inner * width, d = params.inner * depth;
-  if (w <= 0 || d <= 0) return 0;
-  const int nx = std::max(1, static_cast<int>(std::ceil(w / params.cell)));
-  const int ny = std::max(1, static_cast<int>(std::ceil(d / params.cell)));
-  std::vector<char> seat(static_cast<size_t>(nx) * static_cast<size_t>(ny), 0);
-  for (const auto& p : points) {
-    if (p.z() < params.from || p.z() > params.to) continue;
-    const float u = (p.x() + w / 2) / w, v = (p.y() + d / 2) / d;
-    if (u < 0 || u >= 1 || v < 0 || v >= 1) continue;
-    seat[static_cast<size_t>(u * static_cast<float>(nx)) * static_cast<size_t>(ny) +
-         static_cast<size_t>(v * static_cast<float>(ny))] = 1;
-  }
+  const Cells cells(width, depth, params);
+  if (cells.w <= 0 || cells.d <= 0) return 0;
+  const std::vector<char> seat = seatCells(points, cells, params);
   return static_cast<float>(std::count(seat.begin(), seat.end(), 1)) / static_cast<float>(seat.size());
 }
 
@@ -40,14 +117,26 @@ SeatAreaCheck checkSeatArea(const VerificationScene& scene, const Hypothesis& hy
   SeatAreaCheck check;
   if (!params.enabled || !trained || !hypothesis.upright_box || !hypothesis.verification) return check;
   const SceneBox local = sceneBox(scene, hypothesis);
-  check.looked = true;
-  check.min_share = params.min_share;
-  std::vector<Eigen::Vector3f> seat;  // only what can count, in the box's frame above the floor
+  const Cells cells(local.box.size.x(), local.box.size.y(), params);
+  if (cells.w <= 0 || cells.d <= 0) return check;
+  std::vector<Eigen::Vector3f> band;  // only what can count, in the box's frame above the floor
   for (const auto& p : scene.points) {
     const Eigen::Vector3f q = local.boxFrame(p);
-    if (q.z() >= params.from && q.z() <= params.to) seat.push_back(q);
+    if (q.z() >= params.from && q.z() <= params.to) band.push_back(q);
   }
-  check.share = seatAreaShare(seat, local.box.size.x(), local.box.size.y(), params);
+  const std::vector<char> seat = seatCells(band, cells, params);
+  std::vector<char> seen = scene.map ? std::vector<char>(cells.size(), 1) : seenCells(scene, local, cells, params);
+  int seat_count = 0, seen_count = 0;
+  for (size_t i = 0; i < cells.size(); ++i) {
+    seen[i] = seen[i] || seat[i];  // a point measured there was seen
+    seat_count += seat[i];
+    seen_count += seen[i];
+  }
+  check.seen = static_cast<float>(seen_count) / static_cast<float>(cells.size());
+  if (seen_count == 0 || check.seen < params.min_seen) return check;
+  check.looked = true;
+  check.min_share = params.min_share;
+  check.share = static_cast<float>(seat_count) / static_cast<float>(seen_count);
   return check;
 }
 

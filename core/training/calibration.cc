@@ -244,7 +244,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     std::vector<SceneChecks> checks;  // what they need from the fold's shapes, worked out once
     if (cp.scene_checks) {
       checks.reserve(fold_model.categories.size());
-      for (const auto& category : fold_model.categories) checks.emplace_back(fold_model, category, SceneCheckParams{});
+      for (const auto& category : fold_model.categories) checks.emplace_back(fold_model, category, cp.checks);
     }
     RecognitionOptions options;
     options.strategy = strategy;

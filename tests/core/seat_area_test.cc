@@ -1,5 +1,6 @@
 // A seat's area: a couch shows its seat over its footprint; a desk as long and as deep, on two
-// legs and a drawer front, shows a line of parts at seat height and nothing between them.
+// legs and a drawer front, shows a line of parts at seat height and nothing between them. In a
+// single view a couch seen from behind hides its seat: hidden is not missing.
 #include "core/recognition/seat_area.h"
 
 #include <vector>
@@ -8,7 +9,10 @@
 #include <gtest/gtest.h>
 
 #include "core/common/upright_box.h"
+#include "core/scanner/scanner.h"
+#include "tests/common/known_gravity.h"
 #include "tests/common/map_surfaces.h"
+#include "tests/common/synthetic_furniture.h"
 #include "tests/common/verified_hypothesis.h"
 
 namespace ism {
@@ -49,6 +53,56 @@ TEST(SeatArea, ACouchShowsItsSeatADeskDoesNot) {
   Hypothesis unverified = testing::verifiedCouchAt(2.5f);
   unverified.verification.reset();
   EXPECT_FALSE(checkSeatArea(view, unverified, true).looked);
+}
+
+// A couch 2 x 0.9 m at (x, 0): a seat block 0.45 m high, its back (0.15 m deep, 0.85 m high) on
+// its +y side. A desk 2 x 0.9 m: a top 0.72-0.75 m high on four legs.
+Mesh couchMesh() {
+  return testing::merge(testing::boxMesh({-1.0f, -0.45f, 0}, {1.0f, 0.45f, 0.45f}),
+                        testing::boxMesh({-1.0f, 0.3f, 0.45f}, {1.0f, 0.45f, 0.85f}));
+}
+Mesh deskMesh() {
+  Mesh desk = testing::boxMesh({-1.0f, -0.45f, 0.72f}, {1.0f, 0.45f, 0.75f});
+  for (const float x : {-0.95f, 0.95f}) {
+    for (const float y : {-0.4f, 0.4f}) desk = testing::merge(desk, testing::boxMesh({x - 0.03f, y - 0.03f, 0}, {x + 0.03f, y + 0.03f, 0.72f}));
+  }
+  return desk;
+}
+
+// One rendered view of the couch at x = -1.3 m and the desk at x = 1.3 m from (0, eye_y) at 1.3 m.
+VerificationScene singleView(float eye_y) {
+  std::vector<SceneObject> objects{{"couch", couchMesh(), -1.3f, 0, 0}, {"", deskMesh(), 1.3f, 0, 0}};
+  SyntheticSceneParams params;
+  params.camera_eye = {0.0f, eye_y, 1.3f};
+  params.camera_target = {0.0f, 0.0f, 0.4f};
+  params.floor_size = 8.0f;
+  return makeVerificationScene(composeScene(objects, params).scene, testing::knownFloor());
+}
+
+Hypothesis couchAt(float x) {
+  UprightBox box;
+  box.size = {2.0f, 0.9f, 0.85f};
+  box.center = {x, 0.0f, 0.425f};
+  return testing::verifiedHypothesis("couch", box);
+}
+
+TEST(SeatArea, ASingleViewCountsOnlyTheCellsItSaw) {
+  const VerificationScene front = singleView(-3.5f);
+  ASSERT_FALSE(front.map);
+  const SeatAreaCheck couch = checkSeatArea(front, couchAt(-1.3f), true);
+  EXPECT_TRUE(couch.looked);
+  EXPECT_FALSE(couch.bare()) << "its seat faces the sensor";
+  const SeatAreaCheck desk = checkSeatArea(front, couchAt(1.3f), true);
+  EXPECT_TRUE(desk.looked) << "the sensor sees under the top, to the floor behind";
+  EXPECT_TRUE(desk.bare());
+
+  const VerificationScene back = singleView(3.5f);
+  const SeatAreaCheck behind = checkSeatArea(back, couchAt(-1.3f), true);
+  EXPECT_LT(behind.seen, 0.3f) << "its back hides the seat";
+  EXPECT_FALSE(behind.bare()) << "hidden, not missing";
+  VerificationScene as_map = back;  // what the same points would say if every cell counted
+  as_map.map = true;
+  EXPECT_TRUE(checkSeatArea(as_map, couchAt(-1.3f), true).bare());
 }
 
 TEST(SeatArea, TheShareCountsTheInnerFootprintsCellsAtSeatHeight) {
