@@ -41,6 +41,8 @@ std::vector<char> seatCells(const std::vector<Eigen::Vector3f>& points, const Ce
   return seat;
 }
 
+constexpr float kNearest = 0.3f;  // m along the view
+
 // Which cells a single view's sensor (at the origin of scene.points) saw at seat height: the scene
 // is projected on a plane facing the footprint, and each direction keeps the nearest measured
 // depth; a cell's middle at seat height is seen when that depth is not nearer than its own by
@@ -52,7 +54,7 @@ std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& loca
   if (centre.norm() < 1e-3f) return seen;
   const Eigen::Vector3f forward = centre.normalized();
   Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ());
-  if (right.norm() < 1e-3f) return seen;  // looking straight down: no seat is hidden from above
+  if (right.norm() < 1e-3f) right = forward.cross(Eigen::Vector3f::UnitX());  // straight down at it
   right.normalize();
   const Eigen::Vector3f up = right.cross(forward);
   struct Probe {
@@ -65,12 +67,16 @@ std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& loca
     const Eigen::Vector3f p(local.box.center.x() + local.cos_yaw * m.x() - local.sin_yaw * m.y(),
                             local.box.center.y() + local.sin_yaw * m.x() + local.cos_yaw * m.y(), centre.z());
     const float t = p.dot(forward);
-    if (t <= 0.05f) return seen;  // the footprint reaches behind the sensor
+    // The sensor over or next to the footprint: too near to tell (and the directions' bins would
+    // spread without bound).
+    if (t <= kNearest) return seen;
     probes[i] = {p.dot(right) / t, p.dot(up) / t, t};
     a0 = std::min(a0, probes[i].a), a1 = std::max(a1, probes[i].a);
     b0 = std::min(b0, probes[i].b), b1 = std::max(b1, probes[i].b);
   }
-  const int na = static_cast<int>((a1 - a0) / params.angle) + 1, nb = static_cast<int>((b1 - b0) / params.angle) + 1;
+  // As many bins as bin() rounds the probes into.
+  const int na = static_cast<int>((a1 - a0) / params.angle + 0.5f) + 1;
+  const int nb = static_cast<int>((b1 - b0) / params.angle + 0.5f) + 1;
   std::vector<float> nearest(static_cast<size_t>(na) * static_cast<size_t>(nb), std::numeric_limits<float>::infinity());
   const auto bin = [&](float a, float b) {
     const int ia = static_cast<int>(std::floor((a - a0) / params.angle + 0.5f));
@@ -79,12 +85,13 @@ std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& loca
   };
   for (const auto& p : scene.points) {
     const float t = p.dot(forward);
-    if (t <= 0.05f) continue;
+    if (t <= 1e-3f) continue;  // behind the sensor
     const int k = bin(p.dot(right) / t, p.dot(up) / t);
     if (k >= 0) nearest[static_cast<size_t>(k)] = std::min(nearest[static_cast<size_t>(k)], t);
   }
   for (size_t i = 0; i < cells.size(); ++i) {
-    const float t = nearest[static_cast<size_t>(bin(probes[i].a, probes[i].b))];
+    const int k = bin(probes[i].a, probes[i].b);
+    const float t = k < 0 ? std::numeric_limits<float>::infinity() : nearest[static_cast<size_t>(k)];
     seen[i] = std::isfinite(t) && t >= probes[i].depth - params.margin;
   }
   return seen;
