@@ -45,9 +45,9 @@ struct CalibrationParams {
   // which passed them is right, as the ones recognition answers have; false labels every verified
   // peak (ism-train --no-calibration-scene-checks).
   bool scene_checks = true;
-  // Those checks. All of recognition's but the seat's area (seat_area.h): over four draws,
-  // calibrating with it too gave the clouds' mAP -0.8 to +0.9 against recognition with it alone,
-  // +0.2 to +0.8 (docs/EVALUATION.md, "A seat's area").
+  // Those checks: all of recognition's but the seat's area (seat_area.h). Over four draws the
+  // seat's area in recognition alone moved the clouds' mAP by +0.2 to +0.8, and in the calibration
+  // too by -0.8 to +0.9 (docs/EVALUATION.md, "A seat's area").
   SceneCheckParams checks = [] {
     SceneCheckParams p;
     p.seat_area.enabled = false;
