@@ -4,25 +4,20 @@
 #include <cmath>
 #include <vector>
 
+#include "core/recognition/footprint_cells.h"
+
 namespace ism {
 namespace {
 
 // Cells of the inner footprint: 1 floor, 2 covered (both may be set).
 struct Cells {
-  int nx = 1, ny = 1;
-  float width = 0, depth = 0;
+  FootprintCells grid;
   std::vector<char> marks;
-  Cells(float w, float d, const BareFloorParams& params) : width(params.inner * w), depth(params.inner * d) {
-    nx = std::max(1, static_cast<int>(std::ceil(width / params.cell)));
-    ny = std::max(1, static_cast<int>(std::ceil(depth / params.cell)));
-    marks.assign(static_cast<size_t>(nx) * static_cast<size_t>(ny), 0);
-  }
+  Cells(float w, float d, const BareFloorParams& params) : grid(w, d, params.inner, params.cell), marks(grid.size(), 0) {}
   // (x, y) about the footprint's centre along its sides; null outside the inner footprint.
   char* at(float x, float y) {
-    const float u = (x + width / 2) / width, v = (y + depth / 2) / depth;
-    if (u < 0 || u >= 1 || v < 0 || v >= 1) return nullptr;
-    return &marks[static_cast<size_t>(u * static_cast<float>(nx)) * static_cast<size_t>(ny) +
-                  static_cast<size_t>(v * static_cast<float>(ny))];
+    const int i = grid.of(x, y);
+    return i < 0 ? nullptr : &marks[static_cast<size_t>(i)];
   }
   void add(const Eigen::Vector3f& p, float top, const BareFloorParams& params) {
     char* cell = at(p.x(), p.y());

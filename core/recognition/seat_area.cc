@@ -5,34 +5,15 @@
 #include <limits>
 #include <vector>
 
+#include "core/recognition/footprint_cells.h"
+
 namespace ism {
 namespace {
 
-// The inner footprint's cells, x-major.
-struct Cells {
-  float w = 0, d = 0;
-  int nx = 1, ny = 1;
-  Cells(float width, float depth, const SeatAreaParams& params) : w(params.inner * width), d(params.inner * depth) {
-    nx = std::max(1, static_cast<int>(std::ceil(w / params.cell)));
-    ny = std::max(1, static_cast<int>(std::ceil(d / params.cell)));
-  }
-  size_t size() const { return static_cast<size_t>(nx) * static_cast<size_t>(ny); }
-  // The cell holding (x, y) about the footprint's centre, or -1 outside.
-  int of(float x, float y) const {
-    const float u = (x + w / 2) / w, v = (y + d / 2) / d;
-    if (!(u >= 0 && u < 1 && v >= 0 && v < 1)) return -1;
-    return static_cast<int>(u * static_cast<float>(nx)) * ny + static_cast<int>(v * static_cast<float>(ny));
-  }
-  Eigen::Vector2f middle(int i) const {
-    return {-w / 2 + (static_cast<float>(i / ny) + 0.5f) * w / static_cast<float>(nx),
-            -d / 2 + (static_cast<float>(i % ny) + 0.5f) * d / static_cast<float>(ny)};
-  }
-};
-
 // The cells holding a point at seat height.
-std::vector<char> seatCells(const std::vector<Eigen::Vector3f>& points, const Cells& cells, const SeatAreaParams& params) {
+std::vector<char> seatCells(const std::vector<Eigen::Vector3f>& points, const FootprintCells& cells,
+                            const SeatAreaParams& params) {
   std::vector<char> seat(cells.size(), 0);
-  if (cells.w <= 0 || cells.d <= 0) return seat;
   for (const auto& p : points) {
     if (p.z() < params.from || p.z() > params.to) continue;
     const int i = cells.of(p.x(), p.y());
@@ -47,7 +28,7 @@ constexpr float kNearest = 0.3f;  // m along the view
 // is projected on a plane facing the footprint, and each direction keeps the nearest measured
 // depth; a cell's middle at seat height is seen when that depth is not nearer than its own by
 // more than the margin. A direction with nothing measured says nothing.
-std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& local, const Cells& cells,
+std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& local, const FootprintCells& cells,
                             const SeatAreaParams& params) {
   std::vector<char> seen(cells.size(), 0);
   const Eigen::Vector3f centre(local.box.center.x(), local.box.center.y(), local.floor_z + (params.from + params.to) / 2);
@@ -101,8 +82,8 @@ std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& loca
 
 float seatAreaShare(const std::vector<Eigen::Vector3f>& points, float width, float depth,
                     const SeatAreaParams& params) {
-  const Cells cells(width, depth, params);
-  if (cells.w <= 0 || cells.d <= 0) return 0;
+  const FootprintCells cells(width, depth, params.inner, params.cell);
+  if (cells.degenerate()) return 0;
   const std::vector<char> seat = seatCells(points, cells, params);
   return static_cast<float>(std::count(seat.begin(), seat.end(), 1)) / static_cast<float>(seat.size());
 }
@@ -124,8 +105,8 @@ SeatAreaCheck checkSeatArea(const VerificationScene& scene, const Hypothesis& hy
   SeatAreaCheck check;
   if (!params.enabled || !trained || !hypothesis.upright_box || !hypothesis.verification) return check;
   const SceneBox local = sceneBox(scene, hypothesis);
-  const Cells cells(local.box.size.x(), local.box.size.y(), params);
-  if (cells.w <= 0 || cells.d <= 0) return check;
+  const FootprintCells cells(local.box.size.x(), local.box.size.y(), params.inner, params.cell);
+  if (cells.degenerate()) return check;
   std::vector<Eigen::Vector3f> band;  // only what can count, in the box's frame above the floor
   for (const auto& p : scene.points) {
     const Eigen::Vector3f q = local.boxFrame(p);

@@ -1,23 +1,20 @@
 #include "core/recognition/under_top.h"
 
 #include <algorithm>
-#include <cmath>
 #include <vector>
+
+#include "core/recognition/footprint_cells.h"
 
 namespace ism {
 
 float openUnderShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,
                      const UnderTopParams& params) {
-  const float w = params.inner * width, d = params.inner * depth;
-  const int nx = std::max(1, static_cast<int>(std::ceil(w / params.cell)));
-  const int ny = std::max(1, static_cast<int>(std::ceil(d / params.cell)));
-  std::vector<char> open(static_cast<size_t>(nx) * static_cast<size_t>(ny), 0);
+  const FootprintCells cells(width, depth, params.inner, params.cell);
+  std::vector<char> open(cells.size(), 0);
   for (const auto& p : points) {
     if (p.z() < -params.band || p.z() > top - params.below) continue;
-    const float u = (p.x() + w / 2) / w, v = (p.y() + d / 2) / d;
-    if (u < 0 || u >= 1 || v < 0 || v >= 1) continue;
-    open[static_cast<size_t>(u * static_cast<float>(nx)) * static_cast<size_t>(ny) +
-         static_cast<size_t>(v * static_cast<float>(ny))] = 1;
+    const int i = cells.of(p.x(), p.y());
+    if (i >= 0) open[static_cast<size_t>(i)] = 1;
   }
   return static_cast<float>(std::count(open.begin(), open.end(), 1)) / static_cast<float>(open.size());
 }
