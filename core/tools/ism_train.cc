@@ -84,7 +84,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"lrf", "upright"}));
   app.add_option("--height-tolerance", params.voting.height_tolerance,
                  "cast only the votes of training keypoints within this height of the keypoint's (m); 0 = off")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 100.0));
   app.add_option("--height-weighting", params.voting.height_normalized,
                  "the height test's weights: normalized (a keypoint's weight spreads over the votes at its height, the "
                  "default) or lost (over all of its codeword's votes, so that those at other heights are lost)")
@@ -100,6 +100,13 @@ int main(int argc, char** argv) {
   app.add_flag("--no-calibration-scene-checks", no_calibration_checks,
                "calibrate on every verified peak of the rendered rooms, not only on those that pass recognition's "
                "checks of the scene around them (scene_checks.h)");
+  app.add_flag("--calibration-pooling", params.calibration.pooled,
+               "fit each category's confidence with its slopes drawn towards those all categories share, not alone "
+               "(for categories with few training meshes)");
+  app.add_option("--calibration-pooling-spreads", params.calibration.pooling_spreads,
+                 "with --calibration-pooling: the spreads of each category's slopes around the shared ones that the "
+                 "calibration chooses among by leaving one fold of rooms out (0 = each category alone)")
+      ->check(CLI::Range(0.0, 100.0));
   bool no_shape_profile = false;
   app.add_flag("--no-shape-profile", no_shape_profile,
                "calibrate confidence on the verification's fit alone, not also on how the measured surface's "
@@ -117,7 +124,7 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   app.add_option("--calibration-background", params.calibration.background_objects,
                  "background meshes of the manifest placed in each calibration room (0 to this many)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(CLI::Range(0.0, 100.0));
   app.add_option("--calibration-objects", params.calibration.max_objects,
                  "held-out furniture placed in each calibration room (1 to this many)")
       ->check(CLI::PositiveNumber);

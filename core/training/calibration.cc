@@ -2,8 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <mutex>
+#include <optional>
 #include <random>
+#include <set>
 #include <sstream>
 
 #include <Eigen/Dense>
@@ -280,62 +283,61 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
         const Scene sample = pointSample(room.scene.scene, fraction, rng);
         if (sample.cloud->size() >= 100) look(sample, true);
       }
+      for (auto& s : found) s.fold = fold;
       std::lock_guard<std::mutex> lock(mutex);
       samples.insert(samples.end(), found.begin(), found.end());
     });
   }
+  // The threads' order, not the rooms', put them in this order: the fits' sums then do not depend on it.
+  std::sort(samples.begin(), samples.end(), [](const CalibrationSample& x, const CalibrationSample& y) {
+    return std::tie(x.fold, x.cloud, x.category, x.score, x.support, x.positive, x.fit, x.profile_distance) <
+           std::tie(y.fold, y.cloud, y.category, y.score, y.support, y.positive, y.fit, y.profile_distance);
+  });
   return samples;
 }
 
-Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool shape_profile) {
-  Calibration fit;
-  for (const auto& s : samples) (s.positive ? fit.positives : fit.negatives) += 1;
-  if (fit.positives == 0 || fit.negatives == 0) {
-    throw Error(ErrorCode::kInvalidInput, "calibration needs positive and negative peaks, got " +
-                                              std::to_string(fit.positives) + " and " + std::to_string(fit.negatives));
-  }
-  // Features (ln s, ln(s / n), fit, profile distance, 1); weights (a, c, d, e, b). Without the
-  // profile its feature is 0, so the ridge alone holds e at 0.
-  using Vector = Eigen::Matrix<double, 5, 1>;
-  using Matrix = Eigen::Matrix<double, 5, 5>;
-  std::vector<Vector> x;
-  std::vector<double> y;
-  for (const auto& s : samples) {
-    const double score = std::max(static_cast<double>(s.score), 1e-9);
-    Vector row;
-    row << std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit),
-        shape_profile ? static_cast<double>(s.profile_distance) : 0.0, 1.0;
-    x.push_back(row);
-    y.push_back(s.positive ? 1.0 : 0.0);
-  }
-  // Newton's method on the mean log-loss, each step halved until the loss falls; the ridge (not
-  // on the intercept) keeps a separable set finite.
-  constexpr double kRidge = 1e-3;
-  Vector ridge;
-  ridge << kRidge, kRidge, kRidge, kRidge, 0;
+namespace {
+
+constexpr int kSlopes = 4;  // ln s, ln(s / support), fit, profile distance
+// A little ridge on the slopes (not on the intercepts) keeps a separable set finite.
+constexpr double kRidge = 1e-3;
+
+Eigen::Matrix<double, kSlopes, 1> slopeFeatures(const CalibrationSample& s, bool shape_profile) {
+  const double score = std::max(static_cast<double>(s.score), 1e-9);
+  Eigen::Matrix<double, kSlopes, 1> f;
+  f << std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit),
+      shape_profile ? static_cast<double>(s.profile_distance) : 0.0;
+  return f;
+}
+
+// Logistic regression by Newton's method on the mean log-loss, each step halved until the loss
+// falls, plus 0.5 * sum_j ridge_j w_j^2 + 0.5 * sum_j prior_j (w_j - mean_j)^2.
+Eigen::VectorXd logistic(const std::vector<Eigen::VectorXd>& x, const std::vector<double>& y, const Eigen::VectorXd& ridge,
+                         const Eigen::VectorXd& prior, const Eigen::VectorXd& mean, Eigen::VectorXd w) {
   const double n = static_cast<double>(x.size());
-  const auto loss = [&](const Vector& w) {
+  const auto penalty = [&](const Eigen::VectorXd& v) {
+    return 0.5 * v.dot(ridge.cwiseProduct(v)) + 0.5 * (v - mean).dot(prior.cwiseProduct(v - mean));
+  };
+  const auto loss = [&](const Eigen::VectorXd& v) {
     double sum = 0;
     for (size_t i = 0; i < x.size(); ++i) {
-      const double z = w.dot(x[i]);
+      const double z = v.dot(x[i]);
       const double m = y[i] > 0 ? -z : z;  // log(1 + exp(m)), without overflow
       sum += m > 0 ? m + std::log1p(std::exp(-m)) : std::log1p(std::exp(m));
     }
-    return sum / n + 0.5 * w.dot(ridge.cwiseProduct(w));
+    return sum / n + penalty(v);
   };
-  Vector w;
-  w << 1, 0, 0, 0, 0;
   double current = loss(w);
   for (int iteration = 0; iteration < 100; ++iteration) {
-    Vector gradient = ridge.cwiseProduct(w);
-    Matrix hessian = ridge.asDiagonal();
-    hessian(4, 4) += 1e-9;
+    Eigen::VectorXd gradient = ridge.cwiseProduct(w) + prior.cwiseProduct(w - mean);
+    Eigen::MatrixXd hessian = Eigen::MatrixXd((ridge + prior).asDiagonal());
+    hessian.diagonal().array() += 1e-9;
     for (size_t i = 0; i < x.size(); ++i) {
       const double p = 1.0 / (1.0 + std::exp(-w.dot(x[i])));
       gradient += (p - y[i]) / n * x[i];
-      hessian += p * (1 - p) / n * x[i] * x[i].transpose();
+      hessian.noalias() += p * (1 - p) / n * x[i] * x[i].transpose();
     }
-    const Vector delta = hessian.ldlt().solve(gradient);
+    const Eigen::VectorXd delta = hessian.ldlt().solve(gradient);
     double step = 1;
     while (step > 1e-6 && !(loss(w - step * delta) < current)) step /= 2;
     if (step <= 1e-6) break;
@@ -345,6 +347,47 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool s
     current = next;
     if (converged) break;
   }
+  return w;
+}
+
+void countLabels(const std::vector<CalibrationSample>& samples, Calibration& fit) {
+  for (const auto& s : samples) (s.positive ? fit.positives : fit.negatives) += 1;
+  if (fit.positives == 0 || fit.negatives == 0) {
+    throw Error(ErrorCode::kInvalidInput, "calibration needs positive and negative peaks, got " +
+                                              std::to_string(fit.positives) + " and " + std::to_string(fit.negatives));
+  }
+}
+
+// One category's fit; with `pooled`, its slopes have a Gaussian prior of spread `spread` around
+// those (the prior's weight per sample falls as 1 / n, as a prior's does against a likelihood).
+Calibration fitOne(const std::vector<CalibrationSample>& samples, bool shape_profile,
+                   const std::optional<Eigen::Matrix<double, kSlopes, 1>>& pooled, double spread) {
+  Calibration fit;
+  countLabels(samples, fit);
+  // Features (ln s, ln(s / n), fit, profile distance, 1); weights (a, c, d, e, b). Without the
+  // profile its feature is 0, and the ridge alone holds e at 0.
+  std::vector<Eigen::VectorXd> x;
+  std::vector<double> y;
+  for (const auto& s : samples) {
+    Eigen::VectorXd row(kSlopes + 1);
+    row << slopeFeatures(s, shape_profile), 1.0;
+    x.push_back(row);
+    y.push_back(s.positive ? 1.0 : 0.0);
+  }
+  Eigen::VectorXd ridge = Eigen::VectorXd::Constant(kSlopes + 1, kRidge), prior = Eigen::VectorXd::Zero(kSlopes + 1),
+                  mean = Eigen::VectorXd::Zero(kSlopes + 1);
+  ridge[kSlopes] = 0;
+  if (pooled) {
+    const double weight = 1.0 / (spread * spread * static_cast<double>(samples.size()));
+    for (int j = 0; j < kSlopes; ++j) {
+      if (j == 3 && !shape_profile) continue;
+      prior[j] = weight;
+      mean[j] = (*pooled)[j];
+    }
+  }
+  Eigen::VectorXd start = Eigen::VectorXd::Zero(kSlopes + 1);
+  start[0] = 1;
+  const Eigen::VectorXd w = logistic(x, y, ridge, prior, mean, start);
   fit.a = static_cast<float>(w[0]);
   fit.c = static_cast<float>(w[1]);
   fit.d = static_cast<float>(w[2]);
@@ -353,23 +396,138 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool s
   return fit;
 }
 
+// The slopes every category shares, each category with its own intercept: one logistic
+// regression over all of `groups` (each a category's samples and whether it weighs the profile).
+Eigen::Matrix<double, kSlopes, 1> pooledSlopes(const std::vector<std::pair<const std::vector<CalibrationSample>*, bool>>& groups) {
+  const int dims = kSlopes + static_cast<int>(groups.size());
+  std::vector<Eigen::VectorXd> x;
+  std::vector<double> y;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    for (const auto& s : *groups[g].first) {
+      Eigen::VectorXd row = Eigen::VectorXd::Zero(dims);
+      row.head<kSlopes>() = slopeFeatures(s, groups[g].second);
+      row[kSlopes + static_cast<int>(g)] = 1.0;
+      x.push_back(row);
+      y.push_back(s.positive ? 1.0 : 0.0);
+    }
+  }
+  Eigen::VectorXd ridge = Eigen::VectorXd::Zero(dims);
+  ridge.head<kSlopes>().setConstant(kRidge);
+  Eigen::VectorXd start = Eigen::VectorXd::Zero(dims);
+  start[0] = 1;
+  const Eigen::VectorXd w = logistic(x, y, ridge, Eigen::VectorXd::Zero(dims), Eigen::VectorXd::Zero(dims), start);
+  return w.head<kSlopes>();
+}
+
+bool hasBothLabels(const std::vector<CalibrationSample>& samples) {
+  const auto positives = std::count_if(samples.begin(), samples.end(), [](const auto& s) { return s.positive; });
+  return positives > 0 && positives < static_cast<std::ptrdiff_t>(samples.size());
+}
+
+// Fits each group, alone (spread 0) or drawn towards the pooled slopes of all groups.
+std::vector<std::optional<Calibration>> fitGroups(const std::vector<std::vector<CalibrationSample>>& groups,
+                                                  const std::vector<bool>& profiles, double spread) {
+  std::vector<std::pair<const std::vector<CalibrationSample>*, bool>> usable;
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (hasBothLabels(groups[g])) usable.emplace_back(&groups[g], profiles[g]);
+  }
+  std::optional<Eigen::Matrix<double, kSlopes, 1>> pooled;
+  if (spread > 0 && usable.size() > 1) pooled = pooledSlopes(usable);
+  std::vector<std::optional<Calibration>> fits(groups.size());
+  for (size_t g = 0; g < groups.size(); ++g) {
+    if (hasBothLabels(groups[g])) fits[g] = fitOne(groups[g], profiles[g], pooled, spread);
+  }
+  return fits;
+}
+
+double logLoss(const Calibration& fit, const CalibrationSample& s) {
+  const double p = std::clamp(static_cast<double>(fit.confidence(s.score, s.support, s.fit, s.profile_distance)), 1e-6, 1 - 1e-6);
+  return s.positive ? -std::log(p) : -std::log(1 - p);
+}
+
+}  // namespace
+
+Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool shape_profile) {
+  return fitOne(samples, shape_profile, std::nullopt, 0);
+}
+
+std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::vector<CalibrationSample>>& groups,
+                                                        const std::vector<bool>& profiles, const std::vector<double>& spreads,
+                                                        double* chosen) {
+  double best_spread = 0;
+  if (spreads.size() > 1) {
+    // Leave one fold of rooms out: the spread whose fits on the other folds' rooms best predict
+    // its rooms, which hold furniture those fits never saw.
+    std::set<int> folds;
+    for (const auto& g : groups) {
+      for (const auto& s : g) folds.insert(s.fold);
+    }
+    double best = std::numeric_limits<double>::infinity();
+    for (const double spread : spreads) {
+      double total = 0;  // a group without both labels in a fold's training rooms counts for no spread
+      for (const int fold : folds) {
+        std::vector<std::vector<CalibrationSample>> train(groups.size()), test(groups.size());
+        for (size_t g = 0; g < groups.size(); ++g) {
+          for (const auto& s : groups[g]) (s.fold == fold ? test : train)[g].push_back(s);
+        }
+        const auto fits = fitGroups(train, profiles, spread);
+        for (size_t g = 0; g < groups.size(); ++g) {
+          if (!fits[g]) continue;
+          for (const auto& s : test[g]) total += logLoss(*fits[g], s);
+        }
+      }
+      if (total < best) {
+        best = total;
+        best_spread = spread;
+      }
+    }
+  } else if (!spreads.empty()) {
+    best_spread = spreads.front();
+  }
+  if (chosen != nullptr) *chosen = best_spread;
+  return fitGroups(groups, profiles, best_spread);
+}
+
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
                const TrainingParams& params) {
   const std::vector<CalibrationSample> samples = calibrationSamples(model, scans, objects, params);
-  for (size_t c = 0; c < model.categories.size(); ++c) {
+  const size_t categories = model.categories.size();
+  // A flat-topped category's box is the top the scene measured (top_extent.h), not its fitted
+  // shape's: tables come in every length and carry what stands on and under them, so the profile
+  // in a training table's box would judge the box rather than the table.
+  std::vector<bool> profiles(categories);
+  for (size_t c = 0; c < categories; ++c) profiles[c] = params.calibration.shape_profile && !flatTopped(model.categories[c]);
+  std::vector<double> spreads;
+  if (params.calibration.pooled) spreads = params.calibration.pooling_spreads;
+  // The frames' samples, then the point samples': each category's, and its fit.
+  std::vector<std::vector<CalibrationSample>> groups[2];
+  std::vector<std::optional<Calibration>> fits[2];
+  for (const bool cloud : {false, true}) {
+    auto& own = groups[cloud];
+    own.resize(categories);
+    for (const auto& s : samples) {
+      if (s.cloud == cloud && s.category >= 0 && static_cast<size_t>(s.category) < categories) {
+        own[static_cast<size_t>(s.category)].push_back(s);
+      }
+    }
+    double spread = 0;
+    fits[cloud] = fitCalibrations(own, profiles, spreads, &spread);
+    if (params.progress && !spreads.empty()) {
+      std::ostringstream line;
+      line << (cloud ? "calibration for clouds" : "calibration") << ": slopes drawn towards the categories' shared ones, spread "
+           << spread << " (of";
+      for (const double s : spreads) line << " " << s;
+      line << "; 0 fits each alone)";
+      params.progress(line.str());
+    }
+  }
+  const bool point_samples = std::any_of(groups[1].begin(), groups[1].end(), [](const auto& g) { return !g.empty(); });
+  for (size_t c = 0; c < categories; ++c) {
     CategoryModel& category = model.categories[c];
     const auto t = category.thresholds.find({CodebookType::kGlobal, model.trained_knn.strategy, VoteWeighting::kLocalization});
-    // A flat-topped category's box is the top the scene measured (top_extent.h), not its fitted
-    // shape's: tables come in every length and carry what stands on and under them, so the profile
-    // in a training table's box would judge the box rather than the table.
-    const bool profile = params.calibration.shape_profile && !flatTopped(category);
     for (const bool cloud : {false, true}) {
-      std::vector<CalibrationSample> own;
-      for (const auto& s : samples) {
-        if (s.category == static_cast<int>(c) && s.cloud == cloud) own.push_back(s);
-      }
       std::optional<Calibration>& slot = cloud ? category.cloud_calibration : category.calibration;
-      if (cloud && own.empty()) {  // point samples not asked for
+      if (cloud && !point_samples) {  // point samples not asked for
         slot.reset();
         continue;
       }
@@ -378,7 +536,9 @@ void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::
       line.precision(3);
       line << category.name << (cloud ? " calibration for clouds: " : " calibration: ");
       try {
-        Calibration fit = fitCalibration(own, profile);
+        Calibration fit;
+        if (!fits[cloud][c]) countLabels(groups[cloud][c], fit);  // throws, naming what is missing
+        fit = *fits[cloud][c];
         if (!(fit.a + fit.c > 0)) throw Error(ErrorCode::kInvalidInput, "the fitted confidence falls with the score");
         fit.min_score = t == category.thresholds.end() ? 0.0f : params.calibration.lowest_score_fraction * t->second;
         slot = fit;

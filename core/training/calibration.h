@@ -11,6 +11,7 @@
 // (scene_checks.h) is labelled by whether an object of that category is there; a
 // logistic regression over the log score, the log score per supporting keypoint and, where the
 // model keeps training shapes, the verification's fit and shape profile distance gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
+#include <optional>
 #include <random>
 #include <string>
 #include <vector>
@@ -51,6 +52,7 @@ struct CalibrationSample {
   float fit = 0.5f;  // Verification::fit(), 0.5 when not verified
   float profile_distance = 1.0f;  // Verification::profile_distance, 1 when not verified
   bool cloud = false;  // found in a room seen as an unorganized point sample
+  int fold = 0;        // the calibration fold whose rooms it was found in
 };
 
 // The peaks of the calibration scenes, every category's. `scans` are the training scans the
@@ -64,6 +66,17 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
 // a separable category still gets finite slopes). Throws Error(kInvalidInput) without both
 // positives and negatives.
 Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool shape_profile = true);
+
+// Fits each of `groups` (a category's samples; `profiles`: whether it weighs the profile) as
+// fitCalibration does, but with its slopes drawn towards the slopes all groups share, each with
+// its own intercept (partial pooling: a Gaussian prior of `spread` per slope around the pooled
+// fit; Gelman and Hill, "Data Analysis Using Regression and Multilevel/Hierarchical Models", 2007,
+// ch. 12). The spread is the one of `spreads` whose fits best predict each fold's samples
+// (CalibrationSample::fold) from the other folds'; 0 among them fits each group alone, and so
+// does an empty `spreads`. `chosen` gets the spread used. A group without both labels gets none.
+std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::vector<CalibrationSample>>& groups,
+                                                        const std::vector<bool>& profiles, const std::vector<double>& spreads,
+                                                        double* chosen = nullptr);
 
 // Fits every category of `model` that has positives and negatives among the samples, the
 // frames' samples into its calibration and the point samples' into its cloud_calibration; the

@@ -3,6 +3,8 @@
 // background furniture.
 #include "core/training/calibration.h"
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 #include <gtest/gtest.h>
@@ -110,6 +112,79 @@ TEST(FitCalibration, TheProfileDecidesWhereScoreAndFitCannot) {
   const Calibration without = fitCalibration(samples, false);
   EXPECT_EQ(without.e, 0.0f);
   EXPECT_NEAR(without.confidence(0.5f, 10, 0.6f, 0.2f), without.confidence(0.5f, 10, 0.6f, 1.0f), 1e-6f);
+}
+
+// Samples of one category whose fit decides (positives 0.6-1.0, negatives 0.1-0.7) and whose
+// score says nothing, spread over three folds of rooms.
+std::vector<CalibrationSample> fitDecides(int category, int count, uint32_t seed) {
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<float> score(0.05f, 2.0f), good(0.6f, 1.0f), bad(0.1f, 0.7f);
+  std::vector<CalibrationSample> samples;
+  for (int i = 0; i < count; ++i) {
+    CalibrationSample& s = samples.emplace_back();
+    s.category = category;
+    s.positive = i % 5 == 0;
+    s.score = score(rng);
+    s.support = 10;
+    s.fit = s.positive ? good(rng) : bad(rng);
+    s.fold = i % 3;
+  }
+  return samples;
+}
+
+TEST(FitCalibrations, AloneTheyAreEachCategorysOwnFit) {
+  const std::vector<std::vector<CalibrationSample>> groups = {fitDecides(0, 300, 1), fitDecides(1, 200, 2)};
+  double chosen = -1;
+  const auto fits = fitCalibrations(groups, {true, true}, {}, &chosen);
+  EXPECT_EQ(chosen, 0.0);
+  ASSERT_EQ(fits.size(), 2u);
+  for (size_t g = 0; g < 2; ++g) {
+    ASSERT_TRUE(fits[g]);
+    const Calibration alone = fitCalibration(groups[g]);
+    EXPECT_FLOAT_EQ(fits[g]->d, alone.d);
+    EXPECT_FLOAT_EQ(fits[g]->b, alone.b);
+  }
+}
+
+TEST(FitCalibrations, AFewPeaksBorrowTheOtherCategoriesSlopes) {
+  // Two categories where the fit decides, and a third with 4 positives among 40 whose score
+  // happens to separate them and whose fit, by chance, does not.
+  std::vector<std::vector<CalibrationSample>> groups = {fitDecides(0, 600, 3), fitDecides(1, 600, 4)};
+  std::vector<CalibrationSample>& few = groups.emplace_back();
+  for (int i = 0; i < 40; ++i) {
+    CalibrationSample& s = few.emplace_back();
+    s.category = 2;
+    s.positive = i % 10 == 0;
+    s.score = s.positive ? 1.5f + 0.01f * static_cast<float>(i) : 0.2f + 0.02f * static_cast<float>(i);
+    s.support = 10;
+    s.fit = 0.3f + 0.01f * static_cast<float>(i % 7);
+    s.fold = i % 3;
+  }
+  const Calibration alone = fitCalibration(few);
+  const auto pooled = fitCalibrations(groups, {true, true, true}, {0.25});
+  ASSERT_TRUE(pooled[2]);
+  // Alone, the few peaks' fit weighs next to nothing; drawn towards the others', it weighs much.
+  EXPECT_LT(std::abs(alone.d), 2.0f);
+  EXPECT_GT(pooled[2]->d, alone.d + 3.0f);
+  EXPECT_EQ(pooled[2]->positives, 4);
+  EXPECT_EQ(pooled[2]->negatives, 36);
+}
+
+TEST(FitCalibrations, TheSpreadIsChosenOnHeldOutFoldsAndAGroupWithoutPositivesGetsNone) {
+  std::vector<std::vector<CalibrationSample>> groups = {fitDecides(0, 300, 5), fitDecides(1, 300, 6), {}};
+  for (int i = 0; i < 30; ++i) groups[2].push_back({2, 0.1f * static_cast<float>(i + 1), 5, false, 0.5f});
+  double chosen = -1;
+  const std::vector<double> spreads = {0.0, 0.5, 2.0};
+  const auto fits = fitCalibrations(groups, {true, true, true}, spreads, &chosen);
+  EXPECT_NE(std::find(spreads.begin(), spreads.end(), chosen), spreads.end());
+  ASSERT_EQ(fits.size(), 3u);
+  EXPECT_TRUE(fits[0]);
+  EXPECT_TRUE(fits[1]);
+  EXPECT_FALSE(fits[2]);
+  // The two categories are alike: every spread predicts the held-out folds alike, so whichever was
+  // chosen, the fit decides.
+  EXPECT_GT(fits[0]->confidence(1.0f, 10, 0.95f), 0.5f);
+  EXPECT_LT(fits[0]->confidence(1.0f, 10, 0.2f), 0.05f);
 }
 
 }  // namespace
