@@ -5,6 +5,8 @@
 #include <filesystem>
 #include <thread>
 
+#include "core/common/cli_checks.h"
+
 namespace ism::server {
 namespace {
 
@@ -83,7 +85,7 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
       ->capture_default_str();
   app.add_option("--drain-seconds", o.drain_seconds, "on SIGTERM, how long running calls may take to finish")
       ->envname("ISM_DRAIN_SECONDS")
-      ->check(CLI::NonNegativeNumber)
+      ->check(ism::cli::nonNegative())
       ->capture_default_str();
   app.add_option("--log-level", o.log_level, "trace, debug, info, warn, error, critical, off")
       ->envname("ISM_LOG_LEVEL")

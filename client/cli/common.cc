@@ -11,6 +11,7 @@
 #include <map>
 #include <sstream>
 
+#include "core/common/cli_checks.h"
 #include "core/io/cloud_io.h"
 #include "core/io/depth_png.h"
 #include "core/io/file_bytes.h"
@@ -21,7 +22,7 @@ namespace ism::client {
 
 void Connection::add(CLI::App* app) {
   app->add_option("--server", server, "host:port of the server")->envname("ISM_SERVER")->capture_default_str();
-  app->add_option("--deadline-ms", deadline_ms, "give up after this long (0: never)")->check(CLI::NonNegativeNumber);
+  app->add_option("--deadline-ms", deadline_ms, "give up after this long (0: never)")->check(ism::cli::nonNegative());
   app->add_flag("--json", json, "print JSON (one object per line) instead of tables");
   app->add_flag("--tls", tls, "connect with TLS, trusting the system's CAs (implied by the --tls-* options)");
   app->add_option("--tls-ca", tls_ca, "PEM CA certificates to trust instead of the system's")
@@ -98,10 +99,10 @@ void RecognitionFlags::add(CLI::App* app) {
       ->default_str(toString(activation));
   app->add_option_function<int>("--k", [this](int v) { options.mutable_strategy()->set_k(v); },
                                 "kNN activation: codewords per descriptor (default: the model's)")
-      ->check(CLI::PositiveNumber);
+      ->check(ism::cli::positive());
   app->add_option_function<float>("--cutoff", [this](float v) { options.mutable_strategy()->set_cutoff(v); },
                                   "cutoff activation: descriptor distance (default: the model's)")
-      ->check(CLI::PositiveNumber);
+      ->check(ism::cli::positive());
   app->add_option("--weighting", weighting, "vote weights: cw, lw or aw")
       ->type_name("NAME")
       ->transform(byName({VoteWeighting::kCategorization, VoteWeighting::kLocalization, VoteWeighting::kActivation}))

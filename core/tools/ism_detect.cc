@@ -6,6 +6,7 @@
 #include <iostream>
 #include <sstream>
 
+#include "core/common/cli_checks.h"
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
 #include "core/model/model_file.h"
@@ -36,11 +37,11 @@ int main(int argc, char** argv) {
   app.add_option("--fy", intrinsics.fy, "depth PNG focal length y (px)");
   app.add_option("--cx", intrinsics.cx, "depth PNG principal point x (px)");
   app.add_option("--cy", intrinsics.cy, "depth PNG principal point y (px)");
-  app.add_option("--depth-scale", intrinsics.depth_scale, "depth PNG units per metre")->check(CLI::PositiveNumber);
+  app.add_option("--depth-scale", intrinsics.depth_scale, "depth PNG units per metre")->check(ism::cli::positive());
   app.add_option("--codebook", codebook, "global or separated")->check(CLI::IsMember({"global", "separated"}));
   app.add_option("--activation", activation, "knn or cutoff")->check(CLI::IsMember({"knn", "cutoff"}));
-  app.add_option("--k", options.strategy.activation.k, "codewords per descriptor (knn)")->check(CLI::PositiveNumber);
-  app.add_option("--cutoff", options.strategy.activation.cutoff, "activation distance (cutoff)")->check(CLI::PositiveNumber);
+  app.add_option("--k", options.strategy.activation.k, "codewords per descriptor (knn)")->check(ism::cli::positive());
+  app.add_option("--cutoff", options.strategy.activation.cutoff, "activation distance (cutoff)")->check(ism::cli::positive());
   app.add_option("--weighting", weighting, "vote weights: cw, lw or aw")->check(CLI::IsMember({"cw", "lw", "aw"}));
   app.add_option("--categories", categories, "comma-separated categories (default: all)");
   auto* min_score_opt = app.add_option("--min-score", min_score, "score threshold instead of the model's");
@@ -51,7 +52,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0f, 0.99f))
       ->capture_default_str();
   app.add_option("--up", up, "the scene's up direction, X,Y,Z in its coordinates, when known (else the floor is found)");
-  app.add_option("--max", options.max_hypotheses, "at most N hypotheses (0 = all)")->check(CLI::NonNegativeNumber);
+  app.add_option("--max", options.max_hypotheses, "at most N hypotheses (0 = all)")->check(ism::cli::nonNegative());
   app.add_flag("--json", json, "print JSON instead of a table");
   app.add_option("--picture", picture,
                  "write the scene as PNG with the boxes and the training shapes verification fitted drawn (one input only)");

@@ -7,6 +7,7 @@
 #include <optional>
 #include <string>
 
+#include "core/common/cli_checks.h"
 #include "core/common/error.h"
 #include "core/eval/eval.h"
 #include "core/model/model_file.h"
@@ -56,15 +57,15 @@ int main(int argc, char** argv) {
   train_list_opt->needs(test_list_opt)->excludes(manifest_opt)->excludes(folders_opt);
   test_list_opt->needs(train_list_opt);
   baseline->add_option("--train", train_per_category, "training meshes per category (first by path)")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(ism::cli::positive());
   baseline->add_option("--test", test_per_category, "test meshes per category (the next ones by path)")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(ism::cli::positive());
   baseline->add_option("--views", training.views.views, "virtual scans per mesh")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(ism::cli::positive());
   baseline->add_option("--k-global", training.global_kmeans.k, "global codebook size")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(ism::cli::positive());
   baseline->add_option("--k-separated", training.separated_kmeans.k, "per-category codebook size")
-      ->capture_default_str()->check(CLI::PositiveNumber);
+      ->capture_default_str()->check(ism::cli::positive());
   baseline->add_option("--threads", training.threads, "0 = all cores")->capture_default_str();
   baseline->add_option("--json", json_path, "also write the results as JSON");
   std::optional<uint32_t> training_seed;

@@ -5,6 +5,7 @@
 #include <map>
 #include <optional>
 
+#include "core/common/cli_checks.h"
 #include "core/common/error.h"
 #include "core/model/model_file.h"
 #include "core/training/trainer.h"
@@ -40,12 +41,12 @@ int main(int argc, char** argv) {
   folders_opt->excludes(manifest_opt);
   app.add_option("-o,--output", output, "model file to write")->required();
   app.add_option("--codebook", codebook, "global, separated or both")->check(CLI::IsMember({"global", "separated", "both"}));
-  app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(CLI::PositiveNumber);
-  app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(CLI::PositiveNumber);
+  app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(ism::cli::positive());
+  app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(ism::cli::positive());
   app.add_option("--activation-k", params.knn.k,
                  "codewords each descriptor activates (k-NN activation), with which thresholds and calibration are made")
       ->check(CLI::Range(1, 32));
-  app.add_option("--views", params.views.views, "virtual scans per mesh")->check(CLI::PositiveNumber);
+  app.add_option("--views", params.views.views, "virtual scans per mesh")->check(ism::cli::positive());
   app.add_option("--view-distance", params.views.min_distance,
                  "training cameras at least this far from the object (m); 0 = as near as it fits in view")
       ->check(CLI::Range(0.0f, 20.0f));
@@ -70,7 +71,7 @@ int main(int argc, char** argv) {
                  "besides the contours, one keypoint per cube of this edge on the surface off the floor and walls "
                  "(m; 0 = contours only, as the seed)")
       ->check(CLI::Range(0.0, 1.0));
-  app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(ism::cli::nonNegative());
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.
   bool no_gravity = false, no_training_floor = false, no_calibration = false, no_shapes = false, no_shadow = false;
@@ -84,7 +85,7 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"lrf", "upright"}));
   app.add_option("--height-tolerance", params.voting.height_tolerance,
                  "cast only the votes of training keypoints within this height of the keypoint's (m); 0 = off")
-      ->check(CLI::Range(0.0, 100.0));
+      ->check(ism::cli::nonNegative());
   app.add_option("--height-weighting", params.voting.height_normalized,
                  "the height test's weights: normalized (a keypoint's weight spreads over the votes at its height, the "
                  "default) or lost (over all of its codeword's votes, so that those at other heights are lost)")
@@ -121,13 +122,13 @@ int main(int argc, char** argv) {
                  "depths (0 = off)")
       ->check(CLI::Range(0, 21));
   app.add_option("--calibration-rooms", params.calibration.rooms_per_fold, "rendered rooms per calibration fold")
-      ->check(CLI::PositiveNumber);
+      ->check(ism::cli::positive());
   app.add_option("--calibration-background", params.calibration.background_objects,
                  "background meshes of the manifest placed in each calibration room (0 to this many)")
-      ->check(CLI::Range(0.0, 100.0));
+      ->check(ism::cli::nonNegative());
   app.add_option("--calibration-objects", params.calibration.max_objects,
                  "held-out furniture placed in each calibration room (1 to this many)")
-      ->check(CLI::PositiveNumber);
+      ->check(ism::cli::positive());
   const std::map<std::string, ism::FitTerms> fit_terms{
       {"both", ism::FitTerms::kBoth}, {"inliers", ism::FitTerms::kInliers}, {"free-space", ism::FitTerms::kFreeSpace}};
   app.add_option("--fit-terms", params.calibration.fit_terms,
