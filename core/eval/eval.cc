@@ -5,6 +5,7 @@
 #include <iterator>
 
 #include "core/common/error.h"
+#include "core/recognition/ensemble.h"
 
 namespace ism {
 namespace {
@@ -52,7 +53,8 @@ std::vector<NamedStrategy> seedCombinations(const Model& model) {
 }
 
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
-                                              const EvalRecognition& recognition, const Scene* scene) {
+                                              const EvalRecognition& recognition, const Scene* scene,
+                                              const std::vector<const Model*>& more) {
   RecognitionOptions options;
   options.strategy = strategy;
   options.preset = recognition.preset;
@@ -73,7 +75,10 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.scene_checks.bare_floor.enabled = recognition.bare_floor;
   options.scene_checks.under_top.enabled = recognition.under_top;
   options.scene_checks.seat_area.enabled = recognition.seat_area;
-  return recognizeFeatures(model, features, options, scene).hypotheses;
+  if (more.empty()) return recognizeFeatures(model, features, options, scene).hypotheses;
+  std::vector<const Model*> models = {&model};
+  models.insert(models.end(), more.begin(), more.end());
+  return recognizeEnsembleFeatures(models, features, options, scene).hypotheses;
 }
 
 MeshSplit splitMeshes(const std::vector<TrainingMesh>& meshes, int train_per_category, int test_per_category) {

@@ -58,8 +58,10 @@ struct EvalRecognition {
 // Default preset: one answer per object down to the lowest confidence, most confident first.
 // `scene`, the features' own, is what verification looks at (none: nothing verified).
 // Throws Error(kInvalidInput) when the model lacks the strategy's codebook or threshold.
+// With `more` models (an ensemble, ensemble.h): every model's answers fused.
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
-                                              const EvalRecognition& recognition = {}, const Scene* scene = nullptr);
+                                              const EvalRecognition& recognition = {}, const Scene* scene = nullptr,
+                                              const std::vector<const Model*>& more = {});
 
 // ---------------------------------------------------------------------------------------------
 // (a) Baseline on synthetic scans
@@ -274,6 +276,8 @@ struct RealEvalParams {
   float eye_height = 1.5f;
   bool give_up = true;  // pass a gravity-levelled scene's up (AnnotatedScene::up_is_given)
   ProgressFn progress;  // one line per scene; may be empty
+  // More models with the evaluated one's categories and front end: the ensemble is evaluated.
+  std::vector<const Model*> more_models;
 };
 
 struct RealResult {

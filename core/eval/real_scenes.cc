@@ -395,7 +395,7 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     for (size_t s = 0; s < params.strategies.size(); ++s) {
       start = std::chrono::steady_clock::now();
       auto hypotheses = hypothesesForFeatures(model, front.features, params.strategies[s].strategy, params.recognition,
-                                              &scene);
+                                              &scene, params.more_models);
       run.recognition_ms.push_back(millisecondsSince(start));
       recognition_ms += run.recognition_ms.back();
       result.combinations[s].scene_tp_fp_fn.push_back(

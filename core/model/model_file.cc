@@ -417,46 +417,57 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
   return m;
 }
 
+void toProto(const FrontEndParams& in, v1::FrontEndParams* out) {
+  out->set_leaf_size(in.downsample.leaf_size);
+  out->set_smoothing_enabled(in.smoothing.enabled);
+  out->set_smoothing_radius(in.smoothing.radius);
+  out->set_smoothing_polynomial_order(in.smoothing.polynomial_order);
+  out->set_normal_radius(in.normals.radius);
+  out->set_boundary_radius(in.keypoints.radius);
+  out->set_boundary_angle_threshold(in.keypoints.angle_threshold);
+  out->set_shot_radius(in.shot.radius);
+  out->set_shot_min_neighbours(in.shot.min_neighbours);
+  switch (in.keypoints.method) {
+    case KeypointMethod::kAuto:
+      out->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);
+      break;
+    case KeypointMethod::kBoundary:
+      out->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY);
+      break;
+    case KeypointMethod::kOccludingContour:
+      out->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_OCCLUDING_CONTOUR);
+      break;
+    case KeypointMethod::kRangeImage:
+      out->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE);
+      break;
+  }
+  out->set_unorganized_keypoint_method(in.keypoints.unorganized == KeypointMethod::kRangeImage
+                                          ? v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE
+                                          : v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY);
+  out->set_range_image_pixel_spacings(in.keypoints.range_image.pixel_spacings);
+  out->set_range_image_max_pixels(in.keypoints.range_image.max_pixels);
+  out->set_contour_window(in.keypoints.contour.window);
+  out->set_contour_min_jump(in.keypoints.contour.min_jump);
+  out->set_contour_relative_jump(in.keypoints.contour.relative_jump);
+  out->set_contour_max_gap(in.keypoints.contour.max_gap);
+  out->set_keypoint_min_spacing(in.keypoints.min_spacing);
+  out->set_keypoint_surface_spacing(in.keypoints.surface_spacing);
+  toProto(in.gravity, out->mutable_gravity());
+}
+
 }  // namespace
+
+bool sameFrontEnd(const Model& a, const Model& b) {
+  v1::FrontEndParams pa, pb;
+  toProto(a.front_end, &pa);
+  toProto(b.front_end, &pb);
+  return pa.SerializeAsString() == pb.SerializeAsString();
+}
 
 std::string serializeModel(const Model& model) {
   v1::ModelData data;
   auto* fe = data.mutable_front_end();
-  fe->set_leaf_size(model.front_end.downsample.leaf_size);
-  fe->set_smoothing_enabled(model.front_end.smoothing.enabled);
-  fe->set_smoothing_radius(model.front_end.smoothing.radius);
-  fe->set_smoothing_polynomial_order(model.front_end.smoothing.polynomial_order);
-  fe->set_normal_radius(model.front_end.normals.radius);
-  fe->set_boundary_radius(model.front_end.keypoints.radius);
-  fe->set_boundary_angle_threshold(model.front_end.keypoints.angle_threshold);
-  fe->set_shot_radius(model.front_end.shot.radius);
-  fe->set_shot_min_neighbours(model.front_end.shot.min_neighbours);
-  switch (model.front_end.keypoints.method) {
-    case KeypointMethod::kAuto:
-      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_AUTO);
-      break;
-    case KeypointMethod::kBoundary:
-      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY);
-      break;
-    case KeypointMethod::kOccludingContour:
-      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_OCCLUDING_CONTOUR);
-      break;
-    case KeypointMethod::kRangeImage:
-      fe->set_keypoint_method(v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE);
-      break;
-  }
-  fe->set_unorganized_keypoint_method(model.front_end.keypoints.unorganized == KeypointMethod::kRangeImage
-                                          ? v1::FrontEndParams::KEYPOINT_METHOD_RANGE_IMAGE
-                                          : v1::FrontEndParams::KEYPOINT_METHOD_BOUNDARY);
-  fe->set_range_image_pixel_spacings(model.front_end.keypoints.range_image.pixel_spacings);
-  fe->set_range_image_max_pixels(model.front_end.keypoints.range_image.max_pixels);
-  fe->set_contour_window(model.front_end.keypoints.contour.window);
-  fe->set_contour_min_jump(model.front_end.keypoints.contour.min_jump);
-  fe->set_contour_relative_jump(model.front_end.keypoints.contour.relative_jump);
-  fe->set_contour_max_gap(model.front_end.keypoints.contour.max_gap);
-  fe->set_keypoint_min_spacing(model.front_end.keypoints.min_spacing);
-  fe->set_keypoint_surface_spacing(model.front_end.keypoints.surface_spacing);
-  toProto(model.front_end.gravity, fe->mutable_gravity());
+  toProto(model.front_end, fe);
   data.mutable_voting()->set_frame(model.voting.frame == VoteFrame::kLrf ? v1::VOTE_FRAME_LRF : v1::VOTE_FRAME_UPRIGHT);
   data.mutable_voting()->set_height_tolerance(model.voting.height_tolerance);
   data.mutable_voting()->set_height_normalized(model.voting.height_normalized);

@@ -15,6 +15,9 @@ constexpr uint32_t kModelFormatVersion = 1;
 void saveModel(const Model& model, const std::string& path);
 Model loadModel(const std::string& path);
 std::string serializeModel(const Model& model);
+// Whether the two models' front ends are the same as their files write them: features extracted
+// for one serve the other (an ensemble's models share one front end, ensemble.h).
+bool sameFrontEnd(const Model& a, const Model& b);
 Model parseModel(const std::string& bytes, const std::string& source);
 
 // A model file with what it says about itself, for listings that show what the file holds.

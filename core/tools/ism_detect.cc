@@ -10,6 +10,7 @@
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
 #include "core/model/model_file.h"
+#include "core/recognition/ensemble.h"
 #include "core/recognition/recognizer.h"
 #include "core/report/report.h"
 
@@ -24,14 +25,19 @@ bool isPng(std::string path) {
 
 int main(int argc, char** argv) {
   CLI::App app{"Recognise furniture in scenes with a trained ISM model."};
-  std::string model_path, codebook = "global", activation = "knn", weighting = "lw", categories, picture, debug_ply;
+  std::vector<std::string> model_paths;
+  std::string codebook = "global", activation = "knn", weighting = "lw", categories, picture, debug_ply;
   std::vector<std::string> files;
   ism::DepthIntrinsics intrinsics;
   ism::RecognitionOptions options;
   float min_score = 0;
   bool json = false, no_box_selection = false;
   std::string preset = "default", up;
-  app.add_option("-m,--model", model_path, "trained model file")->required();
+  app.add_option("-m,--model", model_paths,
+                 "trained model file; given again, an ensemble: models of the same categories and front end, trained "
+                 "with other --seed, their answers averaged (default preset)")
+      ->required()
+      ->allow_extra_args(false);
   app.add_option("files", files, "scenes: .pcd, .ply, or 16-bit depth .png")->required();
   app.add_option("--fx", intrinsics.fx, "depth PNG focal length x (px)");
   app.add_option("--fy", intrinsics.fy, "depth PNG focal length y (px)");
@@ -138,13 +144,18 @@ int main(int argc, char** argv) {
     options.scene_checks.under_top.enabled = !no_under_top;
     options.scene_checks.seat_area.enabled = !no_seat_area;
     options.keep_votes = !debug_ply.empty();
-    const ism::Model model = ism::loadModel(model_path);
+    std::vector<ism::Model> loaded;
+    for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));
+    std::vector<const ism::Model*> models;
+    for (const auto& m : loaded) models.push_back(&m);
+    const ism::Model& model = loaded.front();  // the picture's and the votes' model
 
     nlohmann::json all = nlohmann::json::array();
     for (const auto& file : files) {
       ism::Scene scene = isPng(file) ? ism::loadDepthPng(file, intrinsics) : ism::loadCloudFile(file);
       scene.up = given_up;
-      const ism::RecognitionResult result = ism::recognize(model, scene, options);
+      const ism::RecognitionResult result =
+          models.size() == 1 ? ism::recognize(model, scene, options) : ism::recognizeEnsemble(models, scene, options);
       if (json) {
         nlohmann::json j = ism::toJson(result);
         j["file"] = file;

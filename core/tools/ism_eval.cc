@@ -74,11 +74,16 @@ int main(int argc, char** argv) {
                      "scale meshes without a size by their category's typical height alone (the seed preset's rule)");
 
   CLI::App* real = app.add_subcommand("real", "score a model on real scenes (NAME.pcd + NAME.json)");
-  std::string model_path, codebook = "global", activation = "knn", weighting = "lw", viewpoint = "auto";
+  std::vector<std::string> model_paths;
+  std::string codebook = "global", activation = "knn", weighting = "lw", viewpoint = "auto";
   std::vector<std::string> inputs, mappings;
   bool all_combinations = false;
   float eye_height = 1.5f;
-  real->add_option("-m,--model", model_path, "trained model")->required()->check(CLI::ExistingFile);
+  real->add_option("-m,--model", model_paths,
+                   "trained model; given again, an ensemble of models of the same categories and front end (ensemble.h)")
+      ->required()
+      ->allow_extra_args(false)
+      ->check(CLI::ExistingFile);
   real->add_option("scenes", inputs, "folders of scenes, .json or .pcd files")->required();
   real->add_option("--codebook", codebook, "global | separated")->capture_default_str();
   real->add_option("--activation", activation, "knn | cutoff")->capture_default_str();
@@ -225,7 +230,10 @@ int main(int argc, char** argv) {
       // Every annotation is checked before the long run starts.
       std::vector<ism::AnnotatedScene> scenes;
       for (const auto& path : ism::findSceneAnnotations(inputs)) scenes.push_back(ism::readSceneAnnotation(path));
-      const ism::Model model = ism::loadModel(model_path);
+      std::vector<ism::Model> loaded;
+      for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));
+      const ism::Model& model = loaded.front();
+      for (size_t m = 1; m < loaded.size(); ++m) params.more_models.push_back(&loaded[m]);
       if (all_combinations) {
         params.strategies = ism::seedCombinations(model);
       } else {

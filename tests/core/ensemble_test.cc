@@ -1,0 +1,95 @@
+// An ensemble's answers: one per object, at the mean of the models' confidences (0 for a model
+// without an answer there), and the models it refuses to put together.
+#include "core/recognition/ensemble.h"
+
+#include <cmath>
+#include <cstdlib>
+#include <string>
+
+#include <gtest/gtest.h>
+
+#include "core/common/error.h"
+#include "tests/common/hand_made_votes.h"
+
+namespace ism {
+namespace {
+
+using namespace ism::testing;
+
+// A model that finds the hand-made object at a score of 40, calibrated so that its confidence
+// there is `confidence`.
+Model calibratedAt(const HandMadeObject& o, float confidence) {
+  Model m = modelWithVotes(o.votes);
+  m.categories[0].box = {0.0f, 10.0f, 10.0f};
+  Calibration c;
+  c.a = 1.0f;
+  c.b = -std::log(40.0f) + std::log(confidence / (1.0f - confidence));
+  m.categories[0].calibration = c;
+  return m;
+}
+
+HandMadeObject object() {
+  std::srand(3);
+  HandMadeObject o = handMadeObject(Eigen::Vector3f(0.3f, -0.2f, 0.6f), 40, 0, 0.02f);
+  o.features.descriptors = DescriptorMatrix::Identity(40, 40);
+  return o;
+}
+
+TEST(Ensemble, OneObjectAtTheMeanOfTheModelsConfidences) {
+  const HandMadeObject o = object();
+  const Model sure = calibratedAt(o, 0.8f), unsure = calibratedAt(o, 0.4f);
+  RecognitionOptions options;
+  options.min_confidence = 0.1f;
+  const RecognitionResult alone = recognizeFeatures(sure, o.features, options);
+  ASSERT_EQ(alone.hypotheses.size(), 1u);
+  EXPECT_NEAR(alone.hypotheses[0].confidence, 0.8f, 1e-3f);
+
+  const RecognitionResult same = recognizeEnsembleFeatures({&sure, &sure}, o.features, options, nullptr);
+  ASSERT_EQ(same.hypotheses.size(), 1u);
+  EXPECT_NEAR(same.hypotheses[0].confidence, 0.8f, 1e-3f);
+  EXPECT_EQ(same.hypotheses[0].center, alone.hypotheses[0].center);
+
+  const RecognitionResult both = recognizeEnsembleFeatures({&sure, &unsure}, o.features, options, nullptr);
+  ASSERT_EQ(both.hypotheses.size(), 1u);
+  EXPECT_NEAR(both.hypotheses[0].confidence, 0.6f, 1e-3f);
+  options.min_confidence = 0.65f;  // the mean, not the best model, meets the threshold
+  EXPECT_TRUE(recognizeEnsembleFeatures({&sure, &unsure}, o.features, options, nullptr).hypotheses.empty());
+}
+
+TEST(Ensemble, AModelWithoutAnAnswerThereCountsAsZero) {
+  const HandMadeObject o = object();
+  const Model sure = calibratedAt(o, 0.8f), blind = calibratedAt(o, 0.001f);  // below what is looked at
+  RecognitionOptions options;
+  options.min_confidence = 0.1f;
+  const RecognitionResult result = recognizeEnsembleFeatures({&sure, &blind, &blind, &sure}, o.features, options, nullptr);
+  ASSERT_EQ(result.hypotheses.size(), 1u);
+  EXPECT_NEAR(result.hypotheses[0].confidence, 0.4f, 1e-3f);
+}
+
+void expectRefused(const std::vector<const Model*>& models, const RecognitionOptions& options, const std::string& says) {
+  try {
+    recognizeEnsembleFeatures(models, object().features, options, nullptr);
+    FAIL() << "no exception; expected one saying " << says;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.code(), ErrorCode::kInvalidInput);
+    EXPECT_NE(std::string(e.what()).find(says), std::string::npos) << e.what();
+  }
+}
+
+TEST(Ensemble, ModelsThatCannotAnswerTogetherAreRefused) {
+  const HandMadeObject o = object();
+  const Model m = calibratedAt(o, 0.8f);
+  RecognitionOptions options;
+  expectRefused({}, options, "at least one model");
+  Model coarser = m;
+  coarser.front_end.downsample.leaf_size = 2 * m.front_end.downsample.leaf_size;
+  expectRefused({&m, &coarser}, options, "front end");
+  Model couch = m;
+  couch.categories[0].name = "couch";
+  expectRefused({&m, &couch}, options, "categories");
+  options.preset = RecognitionPreset::kSeed;
+  expectRefused({&m, &m}, options, "default preset");
+}
+
+}  // namespace
+}  // namespace ism
