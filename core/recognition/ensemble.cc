@@ -36,12 +36,12 @@ void checkMembers(const std::vector<const Model*>& models, const RecognitionOpti
 
 // Adds `from`'s stages to `into`, stage by stage by name: the ensemble's time in each.
 void addTimings(const StageTimings& from, StageTimings& into) {
-  for (const auto& [name, ms] : from.stages) {
-    auto at = std::find_if(into.stages.begin(), into.stages.end(), [&](const auto& s) { return s.first == name; });
+  for (const auto& stage : from.stages) {
+    auto at = std::find_if(into.stages.begin(), into.stages.end(), [&](const auto& s) { return s.first == stage.first; });
     if (at == into.stages.end()) {
-      into.add(name, ms);
+      into.add(stage.first, stage.second);
     } else {
-      at->second += ms;
+      at->second += stage.second;
     }
   }
 }
@@ -124,7 +124,6 @@ RecognitionResult recognizeEnsembleFeatures(const std::vector<const Model*>& mod
   }
   return result;
 }
-
 
 RecognitionResult recognizeEnsemble(const std::vector<const Model*>& models, const Scene& scene,
                                     const RecognitionOptions& options, const EnsembleParams& params) {
