@@ -57,7 +57,7 @@ RecognitionResult recognizeEnsembleFeatures(const std::vector<const Model*>& mod
   each.min_confidence = 0;  // down to the lowest a model looks at: the others may vouch for it
   each.max_hypotheses = 0;
   RecognitionResult result;
-  struct Member {
+  struct Fused {
     Hypothesis best;  // the most confident model's answer here
     UprightBox box;   // its box in the gravity frame
     std::vector<bool> from;  // which models answered here
@@ -79,10 +79,10 @@ RecognitionResult recognizeEnsembleFeatures(const std::vector<const Model*>& mod
   }
   std::stable_sort(answers.begin(), answers.end(),
                    [](const auto& a, const auto& b) { return a.first.confidence > b.first.confidence; });
-  std::vector<Member> fused;
+  std::vector<Fused> fused;
   for (auto& [h, m] : answers) {
     const UprightBox box = uprightBoxOf(h.box, to_gravity);
-    Member* into = nullptr;
+    Fused* into = nullptr;
     float best_iou = params.min_iou;
     for (auto& f : fused) {
       if (f.from[m] || f.best.category != h.category) continue;

@@ -31,7 +31,8 @@ constexpr float kNearest = 0.3f;  // m along the view
 std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& local, const FootprintCells& cells,
                             const SeatAreaParams& params) {
   std::vector<char> seen(cells.size(), 0);
-  const Eigen::Vector3f centre(local.box.center.x(), local.box.center.y(), local.floor_z + (params.from + params.to) / 2);
+  const float seat_height = (params.from + params.to) / 2;
+  const Eigen::Vector3f centre = local.sceneFrame({0.0f, 0.0f, seat_height});
   if (centre.norm() < 1e-3f) return seen;
   const Eigen::Vector3f forward = centre.normalized();
   Eigen::Vector3f right = forward.cross(Eigen::Vector3f::UnitZ());
@@ -45,8 +46,7 @@ std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& loca
   float a0 = std::numeric_limits<float>::max(), a1 = -a0, b0 = a0, b1 = -a0;
   for (size_t i = 0; i < cells.size(); ++i) {
     const Eigen::Vector2f m = cells.middle(static_cast<int>(i));
-    const Eigen::Vector3f p(local.box.center.x() + local.cos_yaw * m.x() - local.sin_yaw * m.y(),
-                            local.box.center.y() + local.sin_yaw * m.x() + local.cos_yaw * m.y(), centre.z());
+    const Eigen::Vector3f p = local.sceneFrame({m.x(), m.y(), seat_height});
     const float t = p.dot(forward);
     // The sensor over or next to the footprint: too near to tell (and the directions' bins would
     // spread without bound).

@@ -149,6 +149,12 @@ struct SceneBox {
     const float dx = p.x() - box.center.x(), dy = p.y() - box.center.y();
     return {cos_yaw * dx + sin_yaw * dy, -sin_yaw * dx + cos_yaw * dy, p.z() - floor_z};
   }
+  // boxFrame's inverse: `q` (along the width and the depth from the centre, height above the
+  // floor) in VerificationScene::points' frame.
+  Eigen::Vector3f sceneFrame(const Eigen::Vector3f& q) const {
+    return {box.center.x() + cos_yaw * q.x() - sin_yaw * q.y(), box.center.y() + sin_yaw * q.x() + cos_yaw * q.y(),
+            q.z() + floor_z};
+  }
   // Whether `p` (VerificationScene::points' frame) lies over the footprint, its sides shrunk to
   // `share` of theirs.
   bool overFootprint(const Eigen::Vector3f& p, float share = 1.0f) const {

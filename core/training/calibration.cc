@@ -302,9 +302,12 @@ constexpr int kSlopes = 4;  // ln s, ln(s / support), fit, profile distance
 // A little ridge on the slopes (not on the intercepts) keeps a separable set finite.
 constexpr double kRidge = 1e-3;
 
-Eigen::Matrix<double, kSlopes, 1> slopeFeatures(const CalibrationSample& s, bool shape_profile) {
+constexpr int kProfile = 3;  // the profile distance's slope
+using Slopes = Eigen::Matrix<double, kSlopes, 1>;
+
+Slopes slopeFeatures(const CalibrationSample& s, bool shape_profile) {
   const double score = std::max(static_cast<double>(s.score), 1e-9);
-  Eigen::Matrix<double, kSlopes, 1> f;
+  Slopes f;
   f << std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit),
       shape_profile ? static_cast<double>(s.profile_distance) : 0.0;
   return f;
@@ -361,7 +364,7 @@ void countLabels(const std::vector<CalibrationSample>& samples, Calibration& fit
 // One category's fit; with `pooled`, its slopes have a Gaussian prior of spread `spread` around
 // those (the prior's weight per sample falls as 1 / n, as a prior's does against a likelihood).
 Calibration fitOne(const std::vector<CalibrationSample>& samples, bool shape_profile,
-                   const std::optional<Eigen::Matrix<double, kSlopes, 1>>& pooled, double spread) {
+                   const std::optional<Slopes>& pooled, double spread) {
   Calibration fit;
   countLabels(samples, fit);
   // Features (ln s, ln(s / n), fit, profile distance, 1); weights (a, c, d, e, b). Without the
@@ -380,7 +383,7 @@ Calibration fitOne(const std::vector<CalibrationSample>& samples, bool shape_pro
   if (pooled) {
     const double weight = 1.0 / (spread * spread * static_cast<double>(samples.size()));
     for (int j = 0; j < kSlopes; ++j) {
-      if (j == 3 && !shape_profile) continue;
+      if (j == kProfile && !shape_profile) continue;
       prior[j] = weight;
       mean[j] = (*pooled)[j];
     }
@@ -398,7 +401,7 @@ Calibration fitOne(const std::vector<CalibrationSample>& samples, bool shape_pro
 
 // The slopes every category shares, each category with its own intercept: one logistic
 // regression over all of `groups` (each a category's samples and whether it weighs the profile).
-Eigen::Matrix<double, kSlopes, 1> pooledSlopes(const std::vector<std::pair<const std::vector<CalibrationSample>*, bool>>& groups) {
+Slopes pooledSlopes(const std::vector<std::pair<const std::vector<CalibrationSample>*, bool>>& groups) {
   const int dims = kSlopes + static_cast<int>(groups.size());
   std::vector<Eigen::VectorXd> x;
   std::vector<double> y;
@@ -424,18 +427,24 @@ bool hasBothLabels(const std::vector<CalibrationSample>& samples) {
   return positives > 0 && positives < static_cast<std::ptrdiff_t>(samples.size());
 }
 
-// Fits each group, alone (spread 0) or drawn towards the pooled slopes of all groups.
-std::vector<std::optional<Calibration>> fitGroups(const std::vector<std::vector<CalibrationSample>>& groups,
-                                                  const std::vector<bool>& profiles, double spread) {
+// The slopes the groups with both labels share; none with fewer than two such groups.
+std::optional<Slopes> sharedSlopes(const std::vector<std::vector<CalibrationSample>>& groups, const std::vector<bool>& profiles) {
   std::vector<std::pair<const std::vector<CalibrationSample>*, bool>> usable;
   for (size_t g = 0; g < groups.size(); ++g) {
     if (hasBothLabels(groups[g])) usable.emplace_back(&groups[g], profiles[g]);
   }
-  std::optional<Eigen::Matrix<double, kSlopes, 1>> pooled;
-  if (spread > 0 && usable.size() > 1) pooled = pooledSlopes(usable);
+  if (usable.size() < 2) return std::nullopt;
+  return pooledSlopes(usable);
+}
+
+// Fits each group, alone (spread 0 or no shared slopes) or drawn towards `shared`.
+std::vector<std::optional<Calibration>> fitGroups(const std::vector<std::vector<CalibrationSample>>& groups,
+                                                  const std::vector<bool>& profiles, const std::optional<Slopes>& shared,
+                                                  double spread) {
+  const std::optional<Slopes> towards = spread > 0 ? shared : std::nullopt;
   std::vector<std::optional<Calibration>> fits(groups.size());
   for (size_t g = 0; g < groups.size(); ++g) {
-    if (hasBothLabels(groups[g])) fits[g] = fitOne(groups[g], profiles[g], pooled, spread);
+    if (hasBothLabels(groups[g])) fits[g] = fitOne(groups[g], profiles[g], towards, spread);
   }
   return fits;
 }
@@ -454,26 +463,37 @@ Calibration fitCalibration(const std::vector<CalibrationSample>& samples, bool s
 std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::vector<CalibrationSample>>& groups,
                                                         const std::vector<bool>& profiles, const std::vector<double>& spreads,
                                                         double* chosen) {
-  double best_spread = 0;
+  double best_spread = spreads.empty() ? 0.0 : spreads.front();
   if (spreads.size() > 1) {
     // Leave one fold of rooms out: the spread whose fits on the other folds' rooms best predict
-    // its rooms, which hold furniture those fits never saw.
+    // its rooms, which hold furniture those fits never saw. The folds' splits and shared slopes
+    // do not depend on the spread.
     std::set<int> folds;
     for (const auto& g : groups) {
       for (const auto& s : g) folds.insert(s.fold);
     }
+    struct Split {
+      std::vector<std::vector<CalibrationSample>> train, test;
+      std::optional<Slopes> shared;
+    };
+    std::vector<Split> splits;
+    for (const int fold : folds) {
+      Split& split = splits.emplace_back();
+      split.train.resize(groups.size());
+      split.test.resize(groups.size());
+      for (size_t g = 0; g < groups.size(); ++g) {
+        for (const auto& s : groups[g]) (s.fold == fold ? split.test : split.train)[g].push_back(s);
+      }
+      split.shared = sharedSlopes(split.train, profiles);
+    }
     double best = std::numeric_limits<double>::infinity();
     for (const double spread : spreads) {
       double total = 0;  // a group without both labels in a fold's training rooms counts for no spread
-      for (const int fold : folds) {
-        std::vector<std::vector<CalibrationSample>> train(groups.size()), test(groups.size());
-        for (size_t g = 0; g < groups.size(); ++g) {
-          for (const auto& s : groups[g]) (s.fold == fold ? test : train)[g].push_back(s);
-        }
-        const auto fits = fitGroups(train, profiles, spread);
+      for (const Split& split : splits) {
+        const auto fits = fitGroups(split.train, profiles, split.shared, spread);
         for (size_t g = 0; g < groups.size(); ++g) {
           if (!fits[g]) continue;
-          for (const auto& s : test[g]) total += logLoss(*fits[g], s);
+          for (const auto& s : split.test[g]) total += logLoss(*fits[g], s);
         }
       }
       if (total < best) {
@@ -481,11 +501,9 @@ std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::v
         best_spread = spread;
       }
     }
-  } else if (!spreads.empty()) {
-    best_spread = spreads.front();
   }
   if (chosen != nullptr) *chosen = best_spread;
-  return fitGroups(groups, profiles, best_spread);
+  return fitGroups(groups, profiles, best_spread > 0 ? sharedSlopes(groups, profiles) : std::nullopt, best_spread);
 }
 
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,

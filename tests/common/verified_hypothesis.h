@@ -18,12 +18,15 @@ inline Hypothesis verifiedHypothesis(const std::string& category, const UprightB
   return h;
 }
 
-// A verified couch 2 x 0.9 x 0.85 m standing on z = 0 at (0, y).
-inline Hypothesis verifiedCouchAt(float y) {
+// A verified hypothesis whose box of `size` stands on z = 0 at (x, y).
+inline Hypothesis verifiedStandingAt(const std::string& category, const Eigen::Vector3f& size, float x, float y) {
   UprightBox box;
-  box.size = {2.0f, 0.9f, 0.85f};
-  box.center = {0.0f, y, 0.425f};
-  return verifiedHypothesis("couch", box);
+  box.size = size;
+  box.center = {x, y, size.z() / 2};
+  return verifiedHypothesis(category, box);
 }
+
+// A verified couch 2 x 0.9 x 0.85 m standing on z = 0 at (0, y).
+inline Hypothesis verifiedCouchAt(float y) { return verifiedStandingAt("couch", {2.0f, 0.9f, 0.85f}, 0.0f, y); }
 
 }  // namespace ism::testing

@@ -57,12 +57,7 @@ CategoryModel category(const std::string& name, const TrainingObject& shape) {
   return c;
 }
 
-Hypothesis tableAt(float x) {
-  UprightBox box;
-  box.size = {1.2f, 0.8f, 0.75f};
-  box.center = {x, 0.0f, 0.375f};
-  return verifiedHypothesis("dining_table", box);
-}
+Hypothesis tableAt(float x) { return testing::verifiedStandingAt("dining_table", {1.2f, 0.8f, 0.75f}, x, 0.0f); }
 
 TEST(SceneChecks, ACouchOnItsSeatIsKeptOnABedRefutedOnBareFloorRejected) {
   const VerificationScene view = room();

@@ -79,12 +79,7 @@ VerificationScene singleView(float eye_y) {
   return makeVerificationScene(composeScene(objects, params).scene, testing::knownFloor());
 }
 
-Hypothesis couchAt(float x) {
-  UprightBox box;
-  box.size = {2.0f, 0.9f, 0.85f};
-  box.center = {x, 0.0f, 0.425f};
-  return testing::verifiedHypothesis("couch", box);
-}
+Hypothesis couchAt(float x) { return testing::verifiedStandingAt("couch", {2.0f, 0.9f, 0.85f}, x, 0.0f); }
 
 TEST(SeatArea, ASingleViewCountsOnlyTheCellsItSaw) {
   const VerificationScene front = singleView(-3.5f);

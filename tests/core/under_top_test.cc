@@ -44,12 +44,7 @@ VerificationScene scene() {
   return view;
 }
 
-Hypothesis tableAt(float x) {
-  UprightBox box;
-  box.size = {1.2f, 0.8f, 0.75f};
-  box.center = {x, 0.0f, 0.375f};
-  return testing::verifiedHypothesis("dining_table", box);
-}
+Hypothesis tableAt(float x) { return testing::verifiedStandingAt("dining_table", {1.2f, 0.8f, 0.75f}, x, 0.0f); }
 
 TEST(UnderTop, ATableIsOpenUnderneathACabinetIsNot) {
   const VerificationScene view = scene();
