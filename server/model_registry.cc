@@ -70,6 +70,7 @@ std::shared_ptr<const LoadedModel> ModelRegistry::readModel(const std::string& n
   *info.mutable_trained_knn() = data.trained_knn();
   *info.mutable_trained_cutoff() = data.trained_cutoff();
   info.set_global_codebook_size(model.global_codebook ? model.global_codebook->size() : 0);
+  info.set_draws(static_cast<uint32_t>(1 + model.draws.size()));
   for (size_t i = 0; i < model.categories.size(); ++i) {
     const auto& category = data.categories(static_cast<int>(i));
     const CategoryModel& trained = model.categories[i];

@@ -95,7 +95,8 @@ void printModel(std::ostream& out, const v1::ModelInfo& m) {
       << fe.boundary_radius() << " m / " << fe.boundary_angle_threshold() << " rad, SHOT r " << fe.shot_radius()
       << " m (min " << fe.shot_min_neighbours() << " neighbours)\n"
       << "  activation: kNN k=" << m.trained_knn().k() << ", cutoff " << m.trained_cutoff().cutoff() << "\n"
-      << "  codebook:   global " << m.global_codebook_size() << " codewords\n";
+      << "  codebook:   global " << m.global_codebook_size() << " codewords\n"
+      << "  draws:      " << m.draws() << " (recognised together)\n";
   const auto& p = m.provenance();
   out << "  provenance: " << p.meshes_size() << " meshes, " << p.scans() << " scans, created " << p.created()
       << " by " << p.code_version() << "\n";

@@ -5,7 +5,7 @@
 #include <iterator>
 
 #include "core/common/error.h"
-#include "core/recognition/ensemble.h"
+#include "core/recognition/recognizer.h"
 
 namespace ism {
 namespace {

@@ -58,7 +58,7 @@ struct EvalRecognition {
 // Default preset: one answer per object down to the lowest confidence, most confident first.
 // `scene`, the features' own, is what verification looks at (none: nothing verified).
 // Throws Error(kInvalidInput) when the model lacks the strategy's codebook or threshold.
-// With `more` models (an ensemble, ensemble.h): every model's answers fused.
+// With `more` models (an ensemble, recognizer.h): every model's answers fused.
 std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features& features, const Strategy& strategy,
                                               const EvalRecognition& recognition = {}, const Scene* scene = nullptr,
                                               const std::vector<const Model*>& more = {});

@@ -192,6 +192,11 @@ struct Model {
   std::optional<Codebook> global_codebook;
   std::vector<CategoryModel> categories;
   Provenance provenance;
+  // The same training with other draws of its randomness (ism-train --draws): models of the same
+  // categories and front end, with the global codebook alone and without draws of their own.
+  // Recognition with the default preset and the global codebook answers with this model and its
+  // draws together, as an ensemble (recognizer.h); otherwise with this one alone.
+  std::vector<Model> draws;
 
   const CategoryModel* find(const std::string& category) const;
   bool has(CodebookType type) const;

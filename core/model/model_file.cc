@@ -414,6 +414,16 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
   m.provenance.created = p.created();
   m.provenance.code_version = p.code_version();
   m.provenance.command = p.command();
+  for (int d = 0; d < in.draws_size(); ++d) {
+    const std::string draw = source + " (draw " + std::to_string(d + 2) + ")";
+    if (in.draws(d).draws_size() > 0) r.fail("draw " + std::to_string(d + 2) + " has draws of its own");
+    Model other = fromProto(in.draws(d), draw);
+    if (!sameFrontEnd(m, other)) r.fail("draw " + std::to_string(d + 2) + " has another front end than the first");
+    bool same = other.categories.size() == m.categories.size();
+    for (size_t c = 0; same && c < m.categories.size(); ++c) same = other.categories[c].name == m.categories[c].name;
+    if (!same) r.fail("draw " + std::to_string(d + 2) + " has other categories than the first");
+    m.draws.push_back(std::move(other));
+  }
   return m;
 }
 
@@ -464,8 +474,9 @@ bool sameFrontEnd(const Model& a, const Model& b) {
   return pa.SerializeAsString() == pb.SerializeAsString();
 }
 
-std::string serializeModel(const Model& model) {
-  v1::ModelData data;
+namespace {
+
+void toProto(const Model& model, v1::ModelData& data) {
   auto* fe = data.mutable_front_end();
   toProto(model.front_end, fe);
   data.mutable_voting()->set_frame(model.voting.frame == VoteFrame::kLrf ? v1::VOTE_FRAME_LRF : v1::VOTE_FRAME_UPRIGHT);
@@ -523,7 +534,14 @@ std::string serializeModel(const Model& model) {
   p->set_created(model.provenance.created);
   p->set_code_version(model.provenance.code_version);
   p->set_command(model.provenance.command);
+  for (const auto& draw : model.draws) toProto(draw, *data.add_draws());
+}
 
+}  // namespace
+
+std::string serializeModel(const Model& model) {
+  v1::ModelData data;
+  toProto(model, data);
   v1::ModelFile file;
   file.set_magic(kMagic);
   file.set_format_version(kModelFormatVersion);
@@ -554,13 +572,16 @@ ModelFileContents parseModelFile(const std::string& bytes, const std::string& so
   char version[9];
   std::snprintf(version, sizeof version, "%08x", crc32Of(bytes));
   out.version = version;
-  v1::ModelData& d = out.description;
-  if (d.has_global_codebook()) d.mutable_global_codebook()->clear_centers();
-  for (auto& category : *d.mutable_categories()) {
-    if (category.has_own_codebook()) category.mutable_own_codebook()->clear_centers();
-    category.clear_global_votes();
-    category.clear_own_votes();
-  }
+  const auto describe = [](v1::ModelData& d) {
+    if (d.has_global_codebook()) d.mutable_global_codebook()->clear_centers();
+    for (auto& category : *d.mutable_categories()) {
+      if (category.has_own_codebook()) category.mutable_own_codebook()->clear_centers();
+      category.clear_global_votes();
+      category.clear_own_votes();
+    }
+  };
+  describe(out.description);
+  for (auto& draw : *out.description.mutable_draws()) describe(draw);
   return out;
 }
 

@@ -5,36 +5,35 @@
 // as most steps of the method change them; their average does not (bagging: Breiman, "Bagging
 // predictors", Machine Learning 1996; Hough forests average their trees' votes the same way,
 // Gall and Lempitsky, CVPR 2009). docs/EVALUATION.md ("What the draws of training change")
-// measures it. The front end runs once; each model then votes, verifies and checks on its own,
-// and their answers are fused.
+// measures it. recognizer.h chains it: the front end runs once, each model votes and finds its
+// peaks, this stage groups the models' peaks by object, each group is verified once (the models
+// share their training shapes) and its confidence is the mean of the models' calibrations.
 #include <vector>
 
-#include "core/common/types.h"
-#include "core/frontend/frontend.h"
-#include "core/model/model.h"
-#include "core/recognition/recognizer.h"
+#include <Eigen/Core>
+
+#include "core/recognition/hypothesis.h"
 
 namespace ism {
 
 struct EnsembleParams {
-  // Two models' answers are one object's when their categories match and their upright boxes
-  // overlap by at least this much (IoU in the gravity frame).
+  // Two models' peaks are one object's when their upright boxes overlap by at least this much
+  // (IoU in the gravity frame).
   float min_iou = 0.3f;
 };
 
-// Each model's answers down to confidence 0.01, fused: per category, answers whose boxes overlap
-// by params.min_iou, at most one per model, are one; its confidence is the mean over the models
-// (0 for a model without an answer there), its box, fit and alternatives those of its most
-// confident model's answer. Then one answer per object across categories, options.min_confidence
-// and options.max_hypotheses, as recognize() does. One model: recognize() itself.
-// Throws Error(kInvalidInput) for no models, models whose front ends or categories differ, or
-// the seed preset; otherwise as recognize().
-RecognitionResult recognizeEnsemble(const std::vector<const Model*>& models, const Scene& scene,
-                                    const RecognitionOptions& options, const EnsembleParams& params = {});
+// One object as the models see it: per model, the index of its peak there or -1.
+struct PeakGroup {
+  std::vector<int> peak;
+  int best = 0;  // the model whose peak there is the most confident
+};
 
-// The same on features already extracted from `scene` with the models' front end.
-RecognitionResult recognizeEnsembleFeatures(const std::vector<const Model*>& models, const Features& features,
-                                            const RecognitionOptions& options, const Scene* scene,
-                                            const EnsembleParams& params = {});
+// Groups one category's peaks of each model (peaks[m]: model m's, each with its confidence and
+// upright box) by object: the peaks, most confident first, each join the group whose first peak's
+// box overlaps theirs most, by params.min_iou at least, and holds no peak of their model yet, or
+// start one. Groups come in the order of their first peaks. One model: one group per peak, in
+// the peaks' order of confidence.
+std::vector<PeakGroup> groupPeaks(const std::vector<std::vector<Hypothesis>>& peaks, const Eigen::Matrix3f& to_gravity,
+                                  const EnsembleParams& params = {});
 
 }  // namespace ism

@@ -7,6 +7,7 @@
 
 #include "core/common/error.h"
 #include "core/gravity/viewpoint.h"
+#include "core/model/model_file.h"
 #include "core/recognition/suppression.h"
 #include "core/recognition/upright_boxes.h"
 #include "core/recognition/verification.h"
@@ -32,13 +33,14 @@ struct ConfidenceCurve {
   std::optional<Calibration> calibration;
   std::optional<Calibration> cloud_calibration;  // replaces `calibration` for unorganized scenes
   float threshold = 0;
-  float operator()(const Hypothesis& peak) const {
+  float operator()(const Hypothesis& peak) const { return (*this)(peak.score, peak.support, peak.verification); }
+  // A peak of `score` from `support` keypoints, with the fit `verification` found there.
+  float operator()(float score, int support, const std::optional<Verification>& verification) const {
     if (calibration) {
-      return peak.verification ? calibration->confidence(peak.score, peak.support, peak.verification->fit(),
-                                                         peak.verification->profile_distance)
-                               : calibration->confidence(peak.score, peak.support);
+      return verification ? calibration->confidence(score, support, verification->fit(), verification->profile_distance)
+                          : calibration->confidence(score, support);
     }
-    return threshold > 0 ? 1.0f - std::exp2(-peak.score / threshold) : 1.0f;
+    return threshold > 0 ? 1.0f - std::exp2(-score / threshold) : 1.0f;
   }
   // The most a peak can reach once verified (or left unverified): with the fit and the profile
   // distance at whichever end raises confidence.
@@ -113,17 +115,64 @@ Plan planRecognition(const Model& model, const RecognitionOptions& options) {
   return plan;
 }
 
+// One model of the call and its plan.
+struct Member {
+  const Model* model = nullptr;
+  Plan plan;
+};
+
+void checkEnsemble(const std::vector<const Model*>& models, const RecognitionOptions& options) {
+  if (models.empty()) throw Error(ErrorCode::kInvalidInput, "an ensemble needs at least one model");
+  if (models.size() > 1 && options.preset == RecognitionPreset::kSeed) {
+    throw Error(ErrorCode::kInvalidInput, "an ensemble answers with the default preset, not the seed's");
+  }
+  const Model& first = *models.front();
+  for (size_t m = 1; m < models.size(); ++m) {
+    const Model& other = *models[m];
+    if (!sameFrontEnd(first, other)) {
+      throw Error(ErrorCode::kInvalidInput, "model " + std::to_string(m + 1) +
+                                                " of the ensemble has another front end than the first: its models "
+                                                "must describe a scene alike");
+    }
+    bool same = other.categories.size() == first.categories.size();
+    for (size_t c = 0; same && c < first.categories.size(); ++c) same = other.categories[c].name == first.categories[c].name;
+    if (!same) {
+      throw Error(ErrorCode::kInvalidInput,
+                  "model " + std::to_string(m + 1) + " of the ensemble has other categories than the first");
+    }
+  }
+}
+
+// The models and their draws (Model::draws), each with its plan. The seed's preset, and a
+// separated codebook (which draws are trained without), answer with the models alone.
+std::vector<Member> planMembers(const std::vector<const Model*>& models, const RecognitionOptions& options) {
+  const bool draws = options.preset == RecognitionPreset::kDefault && options.strategy.codebook == CodebookType::kGlobal;
+  std::vector<const Model*> all;
+  for (const Model* model : models) {
+    all.push_back(model);
+    if (!draws) continue;
+    for (const Model& draw : model->draws) all.push_back(&draw);
+  }
+  checkEnsemble(all, options);
+  std::vector<Member> members;
+  for (const Model* model : all) members.push_back({model, planRecognition(*model, options)});
+  return members;
+}
+
+double msSince(std::chrono::steady_clock::time_point since) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
+}
+
 // The codewords each category's votes come from: one activation serves every category with the
 // global codebook; separated codebooks each need their own.
-std::vector<std::vector<Activation>> activateCodewords(const Model& model, const Plan& plan, const Features& features,
-                                                       const RecognitionOptions& options, StageTimings& timings) {
+std::vector<std::vector<Activation>> activateCodewords(const Member& member, const Features& features,
+                                                       const RecognitionOptions& options) {
   const Strategy& strategy = options.strategy;
   const bool global = strategy.codebook == CodebookType::kGlobal;
-  std::vector<std::vector<Activation>> activations(plan.categories.size());
-  ScopedStage stage(&timings, "activate");
-  for (size_t s = 0; s < plan.categories.size() && !(global && s > 0); ++s) {
-    const CategoryModel& c = model.categories[static_cast<size_t>(plan.categories[s])];
-    const Codebook& codebook = global ? *model.global_codebook : *c.own_codebook;
+  std::vector<std::vector<Activation>> activations(member.plan.categories.size());
+  for (size_t s = 0; s < member.plan.categories.size() && !(global && s > 0); ++s) {
+    const CategoryModel& c = member.model->categories[static_cast<size_t>(member.plan.categories[s])];
+    const Codebook& codebook = global ? *member.model->global_codebook : *c.own_codebook;
     activations[s] = codebook.activate(features.descriptors, strategy.activation);
     throwIfStopped(options.should_stop, "codeword activation");
   }
@@ -138,26 +187,32 @@ bool withinHeightPrior(const Hypothesis& peak, const CategoryModel& category, co
                              features.gravity->height(peak.center), slack);
 }
 
-// Every planned category's peaks, one category's Hough space at a time: it is the bulk of the
-// memory on a room scan. With keep_votes the votes go to result.votes as well. In the default
-// preset each peak gets its confidence and upright box, and peaks outside the category's height
-// prior go to result.rejected.
-std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const Features& features,
-                                     const std::vector<std::vector<Activation>>& activations,
-                                     const RecognitionOptions& options, RecognitionResult& result) {
+// The time each stage of the models' searches took, summed over the models.
+struct SearchTimes {
+  double activate_ms = 0, vote_ms = 0, peak_ms = 0;
+};
+
+// Every planned category's peaks of one model, one category's Hough space at a time: it is the
+// bulk of the memory on a room scan. In the default preset each peak gets its confidence and
+// upright box, peaks that cannot reach `lowest` confidence are dropped and peaks outside the
+// category's height prior go to `rejected`. With keep_votes the votes go to `votes`.
+std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& features, const RecognitionOptions& options,
+                                     float lowest, std::vector<Hypothesis>& rejected, std::vector<Vote>* votes,
+                                     SearchTimes& times) {
   const Strategy& strategy = options.strategy;
+  const Model& model = *member.model;
+  const Plan& plan = member.plan;
   const bool global = strategy.codebook == CodebookType::kGlobal;
+  auto start = std::chrono::steady_clock::now();
+  const auto activations = activateCodewords(member, features, options);
+  times.activate_ms += msSince(start);
   std::vector<Hypothesis> all;
-  double vote_ms = 0, peak_ms = 0;
-  const auto elapsed_ms = [](std::chrono::steady_clock::time_point since) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - since).count();
-  };
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const std::vector<Activation>& activated = activations[global ? 0 : s];
-    auto start = std::chrono::steady_clock::now();
+    start = std::chrono::steady_clock::now();
     const HoughSpace hough(model, plan.categories[s], features, activated, strategy, HoughSpace::kMaxGridBins,
                            HoughSpace::kMaxKeptVoteBins, options.should_stop);
-    vote_ms += elapsed_ms(start);
+    times.vote_ms += msSince(start);
     throwIfStopped(options.should_stop, "voting");
     start = std::chrono::steady_clock::now();
     auto peaks = hough.findPeaks(plan.thresholds[s], options.should_stop);
@@ -168,60 +223,124 @@ std::vector<Hypothesis> findAllPeaks(const Model& model, const Plan& plan, const
         all.push_back(std::move(peak));
         continue;
       }
-      if (plan.confidence[s].best(peak) < std::max(options.min_confidence, kLowestConfidence)) continue;
+      if (plan.confidence[s].best(peak) < lowest) continue;
       estimateUprightBox(hough.caster(), category.bin_size / 2, peak);
       peak.passed_selection = withinHeightPrior(peak, category, features, priorSlack(model, category));
-      (peak.passed_selection ? all : result.rejected).push_back(std::move(peak));
+      (peak.passed_selection ? all : rejected).push_back(std::move(peak));
     }
-    peak_ms += elapsed_ms(start);
+    times.peak_ms += msSince(start);
     throwIfStopped(options.should_stop, "hypothesis search");
-    if (options.keep_votes) {
-      auto votes = castVotes(model, plan.categories[s], features, activated, strategy);
-      std::move(votes.begin(), votes.end(), std::back_inserter(result.votes));
+    if (votes != nullptr) {
+      auto cast = castVotes(model, plan.categories[s], features, activated, strategy);
+      std::move(cast.begin(), cast.end(), std::back_inserter(*votes));
     }
   }
-  result.timings.add("vote", vote_ms);
-  result.timings.add("hypotheses", peak_ms);
   return all;
 }
 
-// Default preset: each category's peaks merged to one per object, then verified against the
-// scene, and their confidences made again with the fit. A hypothesis whose agreeing surface is
-// mostly another's of its category (their boxes overlap too little to be merged) is dropped. The
-// scene's checks (scene_checks.h) send the hypotheses they contradict to result.rejected and mark
-// the ones they refute, which are rejected after the answers per object are chosen
-// (selectHypotheses).
-void verifyPeaks(const Model& model, const Plan& plan, const Features& features, const Scene& scene,
-                 const RecognitionOptions& options, std::vector<Hypothesis>& all, RecognitionResult& result) {
+// Default preset, per category: each model's peaks merged to one per object, and the models'
+// peaks grouped by object (ensemble.h). In each group that can reach min_confidence, with `scene`,
+// each model's peak is verified against it and its confidence made again with the fit; a peak
+// whose agreeing surface is mostly another's of its model and category (their boxes overlap too
+// little to be merged) answers nothing. The scene's checks (scene_checks.h) send the peaks they
+// contradict to result.rejected (the first model's) and mark the ones they refute, which are
+// rejected after the answers per object are chosen (selectHypotheses). A group's answer is its
+// most confident model's, at the mean of the models' confidences (0 for a model without an
+// answer there).
+std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, const Features& features,
+                                          const Scene* scene, const RecognitionOptions& options,
+                                          std::vector<std::vector<Hypothesis>> peaks, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "verify");
+  const Model& model = *members.front().model;
+  const Plan& plan = members.front().plan;
   const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-  std::vector<Hypothesis> verified;
-  const VerificationScene view = makeVerificationScene(scene, features.gravity, options.verification);
+  const float lowest = std::max(options.min_confidence, kLowestConfidence);
+  const auto count = static_cast<float>(members.size());
+  // In an ensemble, a model's answer counts towards the mean down to the lowest confidence.
+  const float own_lowest = members.size() > 1 ? kLowestConfidence : lowest;
+  std::optional<VerificationScene> view;
+  if (scene != nullptr) view = makeVerificationScene(*scene, features.gravity, options.verification);
+  std::vector<Hypothesis> answers;
   for (size_t s = 0; s < plan.categories.size(); ++s) {
-    const std::string& name = model.categories[static_cast<size_t>(plan.categories[s])].name;
-    std::vector<Hypothesis> own;
-    for (auto& h : all) {
-      if (h.category == name) own.push_back(std::move(h));
-    }
-    if (options.one_answer_per_object) own = suppressOverlaps(std::move(own), to_gravity, options.suppression);
-    verifyHypotheses(view, model, own, options.verification, options.should_stop);
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
-    const SceneChecks checks(model, category, options.scene_checks);
-    for (auto& h : own) {
-      if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
-      h.confidence = plan.confidence[s](h);
-      if (h.confidence < std::max(options.min_confidence, kLowestConfidence)) continue;
-      const SceneVerdict verdict = checks(view, h, to_gravity);
-      if (verdict == SceneVerdict::kRejected) {
-        h.passed_selection = false;
-        result.rejected.push_back(std::move(h));
-        continue;
+    std::vector<std::vector<Hypothesis>> own(members.size());
+    for (size_t m = 0; m < members.size(); ++m) {
+      for (auto& h : peaks[m]) {
+        if (h.category == category.name) own[m].push_back(std::move(h));
       }
-      h.refuted = verdict == SceneVerdict::kRefuted;
-      verified.push_back(std::move(h));
+      if (options.one_answer_per_object) own[m] = suppressOverlaps(std::move(own[m]), to_gravity, options.suppression);
+    }
+    // Groups that cannot reach `lowest` whatever the fits are not looked at, most confident first.
+    std::vector<std::pair<float, PeakGroup>> groups;
+    for (auto& group : groupPeaks(own, to_gravity, options.ensemble)) {
+      float best = 0, confidence = 0;
+      for (size_t m = 0; m < members.size(); ++m) {
+        if (group.peak[m] < 0) continue;
+        const Hypothesis& peak = own[m][static_cast<size_t>(group.peak[m])];
+        best += members[m].plan.confidence[s].best(peak);
+        confidence += peak.confidence;
+      }
+      if (best / count >= lowest) groups.emplace_back(confidence / count, std::move(group));
+    }
+    std::stable_sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    // Each model's answer in each group: its peak verified, its confidence made again with the fit,
+    // checked against the scene; a duplicate or a rejected peak answers nothing.
+    std::vector<std::vector<std::optional<Hypothesis>>> answered(groups.size(),
+                                                                 std::vector<std::optional<Hypothesis>>(members.size()));
+    for (size_t m = 0; m < members.size(); ++m) {
+      const Model& own_model = *members[m].model;
+      std::vector<Hypothesis> hypotheses;
+      std::vector<size_t> of_group;
+      for (size_t g = 0; g < groups.size(); ++g) {
+        const int peak = groups[g].second.peak[m];
+        if (peak < 0) continue;
+        hypotheses.push_back(own[m][static_cast<size_t>(peak)]);
+        of_group.push_back(g);
+      }
+      // Verification takes them most confident first (stable): its order is the groups'.
+      std::vector<size_t> order(hypotheses.size());
+      for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+      std::stable_sort(order.begin(), order.end(),
+                       [&](size_t a, size_t b) { return hypotheses[a].confidence > hypotheses[b].confidence; });
+      std::vector<Hypothesis> sorted;
+      std::vector<size_t> sorted_group;
+      for (size_t i : order) sorted.push_back(std::move(hypotheses[i])), sorted_group.push_back(of_group[i]);
+      if (view) verifyHypotheses(*view, own_model, sorted, options.verification, options.should_stop);
+      const CategoryModel& own_category = own_model.categories[static_cast<size_t>(plan.categories[s])];
+      const SceneChecks checks(own_model, own_category, options.scene_checks);
+      for (size_t i = 0; i < sorted.size(); ++i) {
+        Hypothesis& h = sorted[i];
+        if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
+        if (view) {
+          h.confidence = members[m].plan.confidence[s](h);
+          if (h.confidence < own_lowest) continue;
+          const SceneVerdict verdict = checks(*view, h, to_gravity);
+          if (verdict == SceneVerdict::kRejected) {
+            h.passed_selection = false;
+            if (m == 0) result.rejected.push_back(std::move(h));
+            continue;
+          }
+          h.refuted = verdict == SceneVerdict::kRefuted;
+        }
+        answered[sorted_group[i]][m] = std::move(h);
+      }
+    }
+    // A group's answer: its most confident model's, at the mean of the models' confidences.
+    for (auto& answers_here : answered) {
+      float sum = 0;
+      std::optional<Hypothesis>* best = nullptr;
+      for (auto& a : answers_here) {
+        if (!a) continue;
+        sum += a->confidence;
+        if (best == nullptr || a->confidence > (*best)->confidence) best = &a;
+      }
+      if (best == nullptr || sum / count < lowest) continue;
+      Hypothesis h = std::move(**best);
+      h.confidence = sum / count;
+      answers.push_back(std::move(h));
     }
   }
-  all = std::move(verified);
+  return answers;
 }
 
 // The seed's preset ranks the hypotheses of every category against each other by
@@ -264,55 +383,83 @@ void selectHypotheses(std::vector<Hypothesis> all, const Features& features, con
   }
 }
 
-void recognizePlanned(const Model& model, const Plan& plan, const Features& features, const Scene* scene,
+void recognizePlanned(const std::vector<Member>& members, const Features& features, const Scene* scene,
                       const RecognitionOptions& options, RecognitionResult& result) {
   result.keypoints = features.size();
   throwIfStopped(options.should_stop, "codeword activation");
-  const auto activations = activateCodewords(model, plan, features, options, result.timings);
   result.gravity = features.gravity;
-  std::vector<Hypothesis> all = findAllPeaks(model, plan, features, activations, options, result);
-  const bool shapes = std::any_of(plan.categories.begin(), plan.categories.end(),
-                                  [&](int c) { return hasShapes(model.categories[static_cast<size_t>(c)]); });
-  if (options.preset == RecognitionPreset::kDefault && options.verify && scene != nullptr && shapes) {
-    verifyPeaks(model, plan, features, *scene, options, all, result);
+  // An ensemble's models each look down to the lowest confidence: the others may vouch for a peak.
+  const float lowest = members.size() > 1 ? kLowestConfidence : std::max(options.min_confidence, kLowestConfidence);
+  SearchTimes times;
+  std::vector<std::vector<Hypothesis>> peaks;
+  std::vector<Hypothesis> others_rejected;  // the first model's are the ones reported
+  for (size_t m = 0; m < members.size(); ++m) {
+    peaks.push_back(findAllPeaks(members[m], features, options, lowest, m == 0 ? result.rejected : others_rejected,
+                                 m == 0 && options.keep_votes ? &result.votes : nullptr, times));
+  }
+  result.timings.add("activate", times.activate_ms);
+  result.timings.add("vote", times.vote_ms);
+  result.timings.add("hypotheses", times.peak_ms);
+  const Model& first = *members.front().model;
+  const bool shapes = std::any_of(members.front().plan.categories.begin(), members.front().plan.categories.end(),
+                                  [&](int c) { return hasShapes(first.categories[static_cast<size_t>(c)]); });
+  const bool verifying = options.verify && scene != nullptr && shapes;
+  std::vector<Hypothesis> all;
+  if (options.preset == RecognitionPreset::kDefault && (verifying || members.size() > 1)) {
+    all = answerPerCategory(members, features, verifying ? scene : nullptr, options, std::move(peaks), result);
+  } else {
+    all = std::move(peaks.front());
   }
   selectHypotheses(std::move(all), features, options, result);
   if (options.keep_votes) result.keypoint_positions = features.positions;
 }
 
 // The plan with each category's calibration for the kind of scene the features come from.
-Plan forScene(Plan plan, const Features& features) {
-  if (features.organized) return plan;
-  for (auto& curve : plan.confidence) {
-    if (curve.cloud_calibration) curve.calibration = curve.cloud_calibration;
+std::vector<Member> forScene(std::vector<Member> members, const Features& features) {
+  if (features.organized) return members;
+  for (auto& member : members) {
+    for (auto& curve : member.plan.confidence) {
+      if (curve.cloud_calibration) curve.calibration = curve.cloud_calibration;
+    }
   }
-  return plan;
+  return members;
 }
 
 }  // namespace
 
+RecognitionResult recognizeEnsembleFeatures(const std::vector<const Model*>& models, const Features& features,
+                                            const RecognitionOptions& options, const Scene* scene) {
+  const std::vector<Member> members = planMembers(models, options);
+  RecognitionResult result;
+  recognizePlanned(forScene(members, features), features, scene, options, result);
+  return result;
+}
+
 RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options,
                                     const Scene* scene) {
-  const Plan plan = planRecognition(model, options);
+  return recognizeEnsembleFeatures({&model}, features, options, scene);
+}
+
+RecognitionResult recognizeEnsemble(const std::vector<const Model*>& models, const Scene& scene,
+                                    const RecognitionOptions& options) {
+  if (!scene.cloud || scene.cloud->empty()) {
+    throw Error(ErrorCode::kInvalidInput, "scene " + scene.source + " has no points");
+  }
+  const std::vector<Member> members = planMembers(models, options);
+  const Model& first = *models.front();
   RecognitionResult result;
-  recognizePlanned(model, forScene(plan, features), features, scene, options, result);
+  const Scene seen = lookedAt(scene);  // a map seen from nowhere from its middle
+  result.viewpoint = seen.sensor_origin;
+  const FrontEndResult front = extractFeatures(seen, first.front_end, first.front_end.smoothing.enabled,
+                                               &result.timings, options.should_stop);
+  result.input_points = front.input_points;
+  result.surface_points = front.surface_points;
+  recognizePlanned(forScene(members, front.features), front.features, &seen, options, result);
   return result;
 }
 
 RecognitionResult recognize(const Model& model, const Scene& scene, const RecognitionOptions& options) {
-  if (!scene.cloud || scene.cloud->empty()) {
-    throw Error(ErrorCode::kInvalidInput, "scene " + scene.source + " has no points");
-  }
-  const Plan plan = planRecognition(model, options);
-  RecognitionResult result;
-  const Scene seen = lookedAt(scene);  // a map seen from nowhere from its middle
-  result.viewpoint = seen.sensor_origin;
-  const FrontEndResult front = extractFeatures(seen, model.front_end, model.front_end.smoothing.enabled,
-                                               &result.timings, options.should_stop);
-  result.input_points = front.input_points;
-  result.surface_points = front.surface_points;
-  recognizePlanned(model, forScene(plan, front.features), front.features, &seen, options, result);
-  return result;
+  return recognizeEnsemble({&model}, scene, options);
 }
 
 }  // namespace ism

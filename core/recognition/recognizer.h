@@ -15,6 +15,7 @@
 #include "core/frontend/frontend.h"
 #include "core/model/model.h"
 #include "core/recognition/box_selection.h"
+#include "core/recognition/ensemble.h"
 #include "core/recognition/hough_space.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/scene_checks.h"
@@ -62,6 +63,8 @@ struct RecognitionOptions {
   // standing over its top, and any hypothesis in a map with bare floor in the middle of its
   // footprint are rejected; a couch over a level top is refuted.
   SceneCheckParams scene_checks;
+  // Default preset, an ensemble (recognizeEnsemble): which models' peaks are one object's.
+  EnsembleParams ensemble;
   bool box_selection = true;            // seed preset; false: keep hypotheses that fail the box test too
   bool return_keypoints = false;        // fill Hypothesis::support_keypoints
   bool keep_votes = false;              // fill RecognitionResult::votes (debug PLY)
@@ -84,6 +87,8 @@ struct RecognitionResult {
   std::vector<Vote> votes;                          // when keep_votes
 };
 
+// The model and its draws (Model::draws) answer together, as recognizeEnsemble's models do
+// (with the default preset and the global codebook).
 // Throws Error(kNotFound) for an unknown category, Error(kInvalidInput) for a strategy the
 // model was not trained for (e.g. separated codebook missing) or a scene with no points left.
 RecognitionResult recognize(const Model& model, const Scene& scene, const RecognitionOptions& options);
@@ -94,5 +99,23 @@ RecognitionResult recognize(const Model& model, const Scene& scene, const Recogn
 // verified. Same errors as recognize() except for the scene; the point counts of the result stay 0.
 RecognitionResult recognizeFeatures(const Model& model, const Features& features, const RecognitionOptions& options,
                                     const Scene* scene = nullptr);
+
+// recognize() with several models of the same categories and front end, each trained with its
+// own draw of training's randomness (ensemble.h): the front end runs once, each model votes and
+// finds its peaks down to confidence 0.01, each category's peaks are grouped by object (at most
+// one per model), and each group whose mean best possible confidence reaches min_confidence is
+// verified once, on the most confident model's peak, with the first model's training shapes.
+// Its confidence is the mean of the models' calibrated confidences for their own peaks with that
+// fit, 0 for a model without a peak there. The scene's checks and one answer per object follow
+// as for one model. Each model's draws (Model::draws) are models of the ensemble too, except
+// with the seed's preset or a separated codebook.
+// Throws Error(kInvalidInput) for no models, models whose front ends or categories differ, or
+// several models with the seed preset; otherwise as recognize().
+RecognitionResult recognizeEnsemble(const std::vector<const Model*>& models, const Scene& scene,
+                                    const RecognitionOptions& options);
+
+// The same on features already extracted from `scene` with the models' front end.
+RecognitionResult recognizeEnsembleFeatures(const std::vector<const Model*>& models, const Features& features,
+                                            const RecognitionOptions& options, const Scene* scene = nullptr);
 
 }  // namespace ism

@@ -10,7 +10,7 @@
 #include "core/common/error.h"
 #include "core/io/cloud_io.h"
 #include "core/model/model_file.h"
-#include "core/recognition/ensemble.h"
+#include "core/recognition/recognizer.h"
 #include "core/recognition/recognizer.h"
 #include "core/report/report.h"
 

@@ -141,6 +141,14 @@ int main(int argc, char** argv) {
   app.add_option("--seed", training_seed,
                  "another draw of training's randomness (k-means, sensor noise, calibration rooms); models of "
                  "several seeds tell a method's effect from chance (tests/eval/seeds.sh)");
+  int draws = 1;
+  app.add_option("--draws", draws,
+                 "train N times, the i-th time (from 0) with --seed S+i (S 0 without --seed; the first time with "
+                 "the given seed or none) and the others with the global codebook alone, and write one file: "
+                 "recognition with the global codebook answers with all N as an ensemble (recognizer.h); about N "
+                 "times the training time")
+      ->check(ism::cli::positive())
+      ->default_val(1);
   app.add_flag("--unsized-by-height", params.unsized_by_height,
                "scale meshes without a size by their category's typical height alone, as the seed preset does, "
                "instead of fitting their box to its typical width, depth and height");
@@ -199,6 +207,10 @@ int main(int argc, char** argv) {
     }
   }
   params.global_codebook = codebook != "separated";
+  if (draws > 1 && !params.global_codebook) {
+    std::cerr << "ism-train: --draws needs the global codebook (an ensemble answers with it): drop --codebook separated\n";
+    return 2;
+  }
   params.separated_codebooks = codebook != "global";
   for (int i = 0; i < argc; ++i) params.command += (i ? " " : "") + std::string(argv[i]);
   params.progress = [](const std::string& line) { std::cout << line << std::endl; };
@@ -206,7 +218,15 @@ int main(int argc, char** argv) {
     const auto meshes = folders.empty() ? ism::readManifest(manifest) : ism::meshesFromFolders(folders);
     for (const auto& m : meshes) params.bin_sizes.emplace(m.category, ism::defaultBinSize(m.category));
     std::cout << "training on " << meshes.size() << " meshes, " << params.views.views << " views each" << std::endl;
-    const ism::Model model = ism::train(meshes, params);
+    ism::Model model = ism::train(meshes, params);
+    for (int d = 1; d < draws; ++d) {
+      std::cout << "draw " << d + 1 << " of " << draws << ": --seed " << training_seed.value_or(0) + d << std::endl;
+      ism::TrainingParams again = params;
+      ism::reseed(again, training_seed.value_or(0) + static_cast<uint32_t>(d));
+      again.separated_codebooks = false;  // the ensemble answers with the global codebook
+      again.global_codebook = true;
+      model.draws.push_back(ism::train(meshes, again));
+    }
     ism::saveModel(model, output);
     std::cout << "wrote " << output << " (" << model.categories.size() << " categories)" << std::endl;
   } catch (const ism::Error& e) {

@@ -1,6 +1,6 @@
 // An ensemble's answers: one per object, at the mean of the models' confidences (0 for a model
-// without an answer there), and the models it refuses to put together.
-#include "core/recognition/ensemble.h"
+// without an answer there), a model's draws among them, and the models it refuses to put together.
+#include "core/recognition/recognizer.h"
 
 #include <cmath>
 #include <cstdlib>
@@ -64,6 +64,26 @@ TEST(Ensemble, AModelWithoutAnAnswerThereCountsAsZero) {
   const RecognitionResult result = recognizeEnsembleFeatures({&sure, &blind, &blind, &sure}, o.features, options, nullptr);
   ASSERT_EQ(result.hypotheses.size(), 1u);
   EXPECT_NEAR(result.hypotheses[0].confidence, 0.4f, 1e-3f);
+}
+
+TEST(Ensemble, AModelsDrawsAnswerWithIt) {
+  const HandMadeObject o = object();
+  Model drawn = calibratedAt(o, 0.8f);
+  drawn.draws = {calibratedAt(o, 0.4f)};
+  RecognitionOptions options;
+  options.min_confidence = 0.1f;
+  const RecognitionResult result = recognizeFeatures(drawn, o.features, options);
+  ASSERT_EQ(result.hypotheses.size(), 1u);
+  EXPECT_NEAR(result.hypotheses[0].confidence, 0.6f, 1e-3f);
+  const Model sure = calibratedAt(o, 0.8f);
+  const RecognitionResult with_another = recognizeEnsembleFeatures({&drawn, &sure}, o.features, options);
+  ASSERT_EQ(with_another.hypotheses.size(), 1u);
+  EXPECT_NEAR(with_another.hypotheses[0].confidence, (0.8f + 0.4f + 0.8f) / 3, 1e-3f);
+  options.preset = RecognitionPreset::kSeed;  // the seed's pipeline: one model, its draws left out
+  const RecognitionResult seed = recognizeFeatures(drawn, o.features, options);
+  const RecognitionResult alone = recognizeFeatures(sure, o.features, options);
+  ASSERT_EQ(seed.hypotheses.size(), alone.hypotheses.size());
+  for (size_t i = 0; i < seed.hypotheses.size(); ++i) EXPECT_EQ(seed.hypotheses[i].score, alone.hypotheses[i].score);
 }
 
 void expectRefused(const std::vector<const Model*>& models, const RecognitionOptions& options, const std::string& says) {

@@ -219,6 +219,40 @@ TEST_F(ModelFileTest, RejectsACodebookWithoutDimension) {
                 "global codebook has size 4000000000 and dim 0; both must be positive");
 }
 
+TEST_F(ModelFileTest, DrawsRoundTripAndMustMatchTheFirstModel) {
+  Model m = sampleModel();
+  Model other = sampleModel();
+  other.categories[0].calibration->b = -9.0f;  // another draw: another calibration
+  m.draws = {other, other};
+  saveModel(m, path);
+  const Model r = loadModel(path);
+  ASSERT_EQ(r.draws.size(), 2u);
+  EXPECT_EQ(r.draws[1].categories[0].calibration->b, -9.0f);
+  expectEqual(r.draws[1].categories[1].global_votes, other.categories[1].global_votes);
+  EXPECT_TRUE(r.draws[0].draws.empty());
+
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  v1::ModelData draw = data;
+                  draw.mutable_categories(1)->set_name("wardrobe");
+                  *data.add_draws() = draw;
+                }),
+                "draw 2 has other categories than the first");
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  v1::ModelData draw = data;
+                  draw.mutable_front_end()->set_shot_radius(0.5f);
+                  *data.add_draws() = draw;
+                }),
+                "draw 2 has another front end than the first");
+  expectCorrupt(editedModelFile([](v1::ModelData& data) {
+                  const v1::ModelData plain = data;
+                  v1::ModelData drawn = data;
+                  *drawn.add_draws() = plain;
+                  *data.add_draws() = plain;
+                  *data.add_draws() = drawn;
+                }),
+                "draw 3 has draws of its own");
+}
+
 TEST_F(ModelFileTest, MissingFileIsNotFound) {
   try {
     loadModel(path + ".absent");

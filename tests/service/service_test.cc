@@ -450,6 +450,7 @@ TEST_F(ServiceTest, ModelInfoDescribesTheFile) {
   EXPECT_GT(model.loaded_at_unix_ms(), 0);
   EXPECT_FLOAT_EQ(model.front_end().shot_radius(), defaultFrontEnd().shot.radius);  // trained with the defaults
   EXPECT_EQ(model.global_codebook_size(), 40u);
+  EXPECT_EQ(model.draws(), 1u);
   EXPECT_EQ(model.provenance().command(), "service tests");
   ASSERT_EQ(model.categories_size(), 2);
   for (const auto& c : model.categories()) {
