@@ -66,7 +66,7 @@ if (( skip_training )); then
 else
   echo "== ism-train on $shipped_manifest" >&2
   start=$(date +%s.%N)
-  "$build/core/ism-train" --manifest "$shipped_manifest" -o "$out/furniture.ismm" --codebook both >"$out/training.log"
+  "$build/core/ism-train" --manifest "$shipped_manifest" -o "$out/furniture.ismm" --codebook both --draws 3 >"$out/training.log"
   end=$(date +%s.%N)
   scans=$(grep -c '^scanned ' "$out/training.log" || true)
   printf '{"seconds": %s, "scans": %s}\n' "$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.1f", b - a }')" "${scans:-0}" >"$out/training.json"

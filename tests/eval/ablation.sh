@@ -67,11 +67,12 @@ steps=(
   "bare-floor|=shape-profile|--preset default --no-under-top --no-seat-area|+ any hypothesis in a map with bare floor (measured floor, nothing above it) in 3 in 10 of the cells of its inner footprint dropped"
   "under-top|=shape-profile|--preset default --no-seat-area|+ tables under whose measured top nothing is measured (under 1 in 10 of the cells of its inner footprint), as under a bed's or a cabinet's, dropped"
   "seat-area|=shape-profile|--preset default|+ chairs and couches with a measured point 0.25-0.65 m above the floor in under 3 in 10 of the cells of their inner footprint that the sensor saw there, as over a desk's legs, dropped"
-  "checked-calibration||--preset default|+ the confidence calibrated on the rendered rooms' peaks that pass these checks of the scene (but the seat's area), as the answers have (the default)"
-  "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|the default without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
-  "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|the default without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
-  "icp|=checked-calibration|--preset default --icp 8|the default with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
-  "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|the default with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
+  "checked-calibration||--preset default|+ the confidence calibrated on the rendered rooms' peaks that pass these checks of the scene (but the seat's area), as the answers have"
+  "draws|--draws 3|--preset default|+ three draws of training's randomness answering together: each draw's peaks grouped by object, each verified by its draw, the mean of the draws' confidences (the default)"
+  "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|one draw without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
+  "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|one draw without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
+  "icp|=checked-calibration|--preset default --icp 8|one draw with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
+  "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|one draw with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
 training_manifest=$manifest
