@@ -108,6 +108,61 @@ TEST(ServiceHealth, EachServiceHasItsOwnStatus) {
   fs::remove_all(dir);
 }
 
+// A file holding draws of training (ism-train --draws) is served as one model: GetModel counts
+// them and Recognize answers with all of them, as core's recognize() does with the file.
+TEST(ServiceModels, AModelWithDrawsIsServedAsOne) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("ism_draws_" + std::to_string(getpid()));
+  fs::create_directories(dir);
+  Model drawn = loadModel(tinyModelDirectory() + "/default.ismm");
+  Model other = drawn;
+  for (auto& category : other.categories) {  // another draw, less sure of itself
+    if (category.calibration) category.calibration->b -= 1.0f;
+    if (category.cloud_calibration) category.cloud_calibration->b -= 1.0f;
+    for (auto& [strategy, threshold] : category.thresholds) threshold *= 2.0f;
+  }
+  drawn.draws = {other};
+  saveModel(drawn, (dir / "drawn.ismm").string());
+  ServerProcess server({"--models", dir.string()});
+  auto stub = FurnitureRecognizer::NewStub(server.channel());
+  {
+    grpc::ClientContext context;
+    v1::GetModelRequest request;
+    request.set_name("drawn");
+    v1::ModelInfo info;
+    ASSERT_TRUE(stub->GetModel(&context, request, &info).ok());
+    EXPECT_EQ(info.draws(), 2u);
+  }
+  const SyntheticScene scene = smallScene();
+  v1::RecognizeRequest request;
+  *request.mutable_scene() = cloudMessage(scene.scene);
+  request.mutable_options()->set_min_confidence(0.01f);
+  grpc::ClientContext context;
+  v1::RecognizeResponse response;
+  const grpc::Status status = stub->Recognize(&context, request, &response);
+  ASSERT_TRUE(status.ok()) << status.error_message();
+
+  RecognitionOptions options;
+  options.min_confidence = 0.01f;
+  const std::string& xyz = request.scene().cloud().xyz();
+  Scene local = sceneFromPacked(reinterpret_cast<const float*>(xyz.data()), xyz.size() / 12, nullptr,
+                                static_cast<int>(xyz.size() / 12), 1);
+  local.sensor_origin = scene.scene.sensor_origin;
+  const RecognitionResult expected = ism::recognize(drawn, local, options);
+  Model alone = drawn;
+  alone.draws.clear();
+  const RecognitionResult first = ism::recognize(alone, local, options);
+  ASSERT_GT(expected.hypotheses.size(), 0u);
+  ASSERT_EQ(response.result().hypotheses_size(), static_cast<int>(expected.hypotheses.size()));
+  for (size_t i = 0; i < expected.hypotheses.size(); ++i) {
+    EXPECT_EQ(response.result().hypotheses(static_cast<int>(i)).category(), expected.hypotheses[i].category);
+    EXPECT_NEAR(response.result().hypotheses(static_cast<int>(i)).confidence(), expected.hypotheses[i].confidence, 1e-5);
+  }
+  // The second draw's curve is another's: the answers are not the first draw's alone.
+  EXPECT_TRUE(first.hypotheses.size() != expected.hypotheses.size() ||
+              std::abs(first.hypotheses[0].confidence - expected.hypotheses[0].confidence) > 1e-3f);
+  fs::remove_all(dir);
+}
+
 TEST_F(ServiceTest, ReflectionListsTheServices) {
   auto reflection = grpc::reflection::v1alpha::ServerReflection::NewStub(server_->channel());
   grpc::ClientContext context;
