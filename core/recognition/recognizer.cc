@@ -297,7 +297,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
         hypotheses.push_back(own[m][static_cast<size_t>(peak)]);
         of_group.push_back(g);
       }
-      // Verification takes them most confident first (stable): its order is the groups'.
+      // verifyHypotheses orders them most confident first (a stable sort): sorted so already, each
+      // keeps its group.
       std::vector<size_t> order(hypotheses.size());
       for (size_t i = 0; i < order.size(); ++i) order[i] = i;
       std::stable_sort(order.begin(), order.end(),
