@@ -9,6 +9,8 @@
 #include <gtest/gtest.h>
 
 #include "core/common/error.h"
+#include "core/common/upright_box.h"
+#include "core/recognition/ensemble.h"
 #include "tests/common/hand_made_votes.h"
 
 namespace ism {
@@ -33,6 +35,48 @@ HandMadeObject object() {
   HandMadeObject o = handMadeObject(Eigen::Vector3f(0.3f, -0.2f, 0.6f), 40, 0, 0.02f);
   o.features.descriptors = DescriptorMatrix::Identity(40, 40);
   return o;
+}
+
+// A peak of `confidence` whose upright box (0.5 m cube, gravity frame = scene) is centred at x.
+Hypothesis peakAt(float x, float confidence) {
+  Hypothesis h;
+  h.category = "chair";
+  h.confidence = confidence;
+  UprightBox box;
+  box.center = Eigen::Vector3f(x, 0.0f, 0.25f);
+  box.size = Eigen::Vector3f::Constant(0.5f);
+  h.box = box.toScene(Eigen::Matrix3f::Identity());
+  h.center = box.center;
+  return h;
+}
+
+TEST(GroupPeaks, OverlappingPeaksOfTheModelsAreOneObjectAtMostOnePerModel) {
+  const Eigen::Matrix3f up = Eigen::Matrix3f::Identity();
+  // Model 0: a chair at x = 0 and one at x = 3. Model 1: the first chair twice (0.1 m and 0.2 m
+  // off: IoU 0.67 and 0.43 with model 0's box), nothing at x = 3.
+  const std::vector<std::vector<Hypothesis>> peaks = {{peakAt(0.0f, 0.9f), peakAt(3.0f, 0.4f)},
+                                                      {peakAt(0.2f, 0.5f), peakAt(0.1f, 0.3f)}};
+  const std::vector<PeakGroup> groups = groupPeaks(peaks, up);
+  ASSERT_EQ(groups.size(), 3u);
+  // Most confident first: model 0's chair, which model 1's 0.5 joins; model 1's 0.3 overlaps
+  // model 0's chair too, but model 1 is already there: an object of its own.
+  EXPECT_EQ(groups[0].peak, (std::vector<int>{0, 0}));
+  EXPECT_EQ(groups[0].best, 0);
+  EXPECT_EQ(groups[1].peak, (std::vector<int>{1, -1}));
+  EXPECT_EQ(groups[2].peak, (std::vector<int>{-1, 1}));
+  EXPECT_EQ(groups[2].best, 1);
+  // Boxes that overlap by less than min_iou are other objects.
+  EnsembleParams strict;
+  strict.min_iou = 0.7f;
+  EXPECT_EQ(groupPeaks(peaks, up, strict).size(), 4u);
+}
+
+TEST(GroupPeaks, OneModelHasAGroupPerPeakInOrderOfConfidence) {
+  const std::vector<std::vector<Hypothesis>> peaks = {{peakAt(0.0f, 0.2f), peakAt(0.1f, 0.6f)}};
+  const std::vector<PeakGroup> groups = groupPeaks(peaks, Eigen::Matrix3f::Identity());
+  ASSERT_EQ(groups.size(), 2u);  // overlapping, but one model: merging is suppressOverlaps' work
+  EXPECT_EQ(groups[0].peak, (std::vector<int>{1}));
+  EXPECT_EQ(groups[1].peak, (std::vector<int>{0}));
 }
 
 TEST(Ensemble, OneObjectAtTheMeanOfTheModelsConfidences) {
