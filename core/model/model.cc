@@ -54,6 +54,11 @@ const CategoryModel* Model::find(const std::string& category) const {
   return nullptr;
 }
 
+bool Model::sameCategories(const Model& other) const {
+  return std::equal(categories.begin(), categories.end(), other.categories.begin(), other.categories.end(),
+                    [](const CategoryModel& a, const CategoryModel& b) { return a.name == b.name; });
+}
+
 bool Model::has(CodebookType type) const {
   if (categories.empty()) return false;
   if (type == CodebookType::kGlobal) return global_codebook.has_value() && global_codebook->size() > 0;

@@ -199,6 +199,9 @@ struct Model {
   std::vector<Model> draws;
 
   const CategoryModel* find(const std::string& category) const;
+  // Whether `other` has this model's categories, by name, in the same order (an ensemble's and a
+  // file's draws must: their plans index categories alike).
+  bool sameCategories(const Model& other) const;
   bool has(CodebookType type) const;
 };
 

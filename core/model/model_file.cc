@@ -419,9 +419,7 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
     if (in.draws(d).draws_size() > 0) r.fail("draw " + std::to_string(d + 2) + " has draws of its own");
     Model other = fromProto(in.draws(d), draw);
     if (!sameFrontEnd(m, other)) r.fail("draw " + std::to_string(d + 2) + " has another front end than the first");
-    bool same = other.categories.size() == m.categories.size();
-    for (size_t c = 0; same && c < m.categories.size(); ++c) same = other.categories[c].name == m.categories[c].name;
-    if (!same) r.fail("draw " + std::to_string(d + 2) + " has other categories than the first");
+    if (!m.sameCategories(other)) r.fail("draw " + std::to_string(d + 2) + " has other categories than the first");
     m.draws.push_back(std::move(other));
   }
   return m;

@@ -6,8 +6,8 @@
 // predictors", Machine Learning 1996; Hough forests average their trees' votes the same way,
 // Gall and Lempitsky, CVPR 2009). docs/EVALUATION.md ("What the draws of training change")
 // measures it. recognizer.h chains it: the front end runs once, each model votes and finds its
-// peaks, this stage groups the models' peaks by object, each group is verified once (the models
-// share their training shapes) and its confidence is the mean of the models' calibrations.
+// peaks, this stage groups the models' peaks by object, each model verifies its own peak in a
+// group, and the group's confidence is the mean of the models'.
 #include <vector>
 
 #include <Eigen/Core>

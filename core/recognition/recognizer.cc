@@ -134,9 +134,7 @@ void checkEnsemble(const std::vector<const Model*>& models, const RecognitionOpt
                                                 " of the ensemble has another front end than the first: its models "
                                                 "must describe a scene alike");
     }
-    bool same = other.categories.size() == first.categories.size();
-    for (size_t c = 0; same && c < first.categories.size(); ++c) same = other.categories[c].name == first.categories[c].name;
-    if (!same) {
+    if (!first.sameCategories(other)) {
       throw Error(ErrorCode::kInvalidInput,
                   "model " + std::to_string(m + 1) + " of the ensemble has other categories than the first");
     }
@@ -195,9 +193,9 @@ struct SearchTimes {
 // Every planned category's peaks of one model, one category's Hough space at a time: it is the
 // bulk of the memory on a room scan. In the default preset each peak gets its confidence and
 // upright box, peaks that cannot reach `lowest` confidence are dropped and peaks outside the
-// category's height prior go to `rejected`. With keep_votes the votes go to `votes`.
+// category's height prior go to `rejected` (when given). With keep_votes the votes go to `votes`.
 std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& features, const RecognitionOptions& options,
-                                     float lowest, std::vector<Hypothesis>& rejected, std::vector<Vote>* votes,
+                                     float lowest, std::vector<Hypothesis>* rejected, std::vector<Vote>* votes,
                                      SearchTimes& times) {
   const Strategy& strategy = options.strategy;
   const Model& model = *member.model;
@@ -226,7 +224,11 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
       if (plan.confidence[s].best(peak) < lowest) continue;
       estimateUprightBox(hough.caster(), category.bin_size / 2, peak);
       peak.passed_selection = withinHeightPrior(peak, category, features, priorSlack(model, category));
-      (peak.passed_selection ? all : rejected).push_back(std::move(peak));
+      if (peak.passed_selection) {
+        all.push_back(std::move(peak));
+      } else if (rejected != nullptr) {
+        rejected->push_back(std::move(peak));
+      }
     }
     times.peak_ms += msSince(start);
     throwIfStopped(options.should_stop, "hypothesis search");
@@ -289,23 +291,19 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
                                                                  std::vector<std::optional<Hypothesis>>(members.size()));
     for (size_t m = 0; m < members.size(); ++m) {
       const Model& own_model = *members[m].model;
-      std::vector<Hypothesis> hypotheses;
-      std::vector<size_t> of_group;
-      for (size_t g = 0; g < groups.size(); ++g) {
-        const int peak = groups[g].second.peak[m];
-        if (peak < 0) continue;
-        hypotheses.push_back(own[m][static_cast<size_t>(peak)]);
-        of_group.push_back(g);
-      }
+      const auto peakIn = [&](size_t g) -> Hypothesis& {
+        return own[m][static_cast<size_t>(groups[g].second.peak[m])];
+      };
       // verifyHypotheses orders them most confident first (a stable sort): sorted so already, each
       // keeps its group.
-      std::vector<size_t> order(hypotheses.size());
-      for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-      std::stable_sort(order.begin(), order.end(),
-                       [&](size_t a, size_t b) { return hypotheses[a].confidence > hypotheses[b].confidence; });
-      std::vector<Hypothesis> sorted;
       std::vector<size_t> sorted_group;
-      for (size_t i : order) sorted.push_back(std::move(hypotheses[i])), sorted_group.push_back(of_group[i]);
+      for (size_t g = 0; g < groups.size(); ++g) {
+        if (groups[g].second.peak[m] >= 0) sorted_group.push_back(g);
+      }
+      std::stable_sort(sorted_group.begin(), sorted_group.end(),
+                       [&](size_t a, size_t b) { return peakIn(a).confidence > peakIn(b).confidence; });
+      std::vector<Hypothesis> sorted;
+      for (size_t g : sorted_group) sorted.push_back(std::move(peakIn(g)));  // each peak is in one group
       if (view) verifyHypotheses(*view, own_model, sorted, options.verification, options.should_stop);
       const CategoryModel& own_category = own_model.categories[static_cast<size_t>(plan.categories[s])];
       const SceneChecks checks(own_model, own_category, options.scene_checks);
@@ -393,9 +391,8 @@ void recognizePlanned(const std::vector<Member>& members, const Features& featur
   const float lowest = members.size() > 1 ? kLowestConfidence : std::max(options.min_confidence, kLowestConfidence);
   SearchTimes times;
   std::vector<std::vector<Hypothesis>> peaks;
-  std::vector<Hypothesis> others_rejected;  // the first model's are the ones reported
-  for (size_t m = 0; m < members.size(); ++m) {
-    peaks.push_back(findAllPeaks(members[m], features, options, lowest, m == 0 ? result.rejected : others_rejected,
+  for (size_t m = 0; m < members.size(); ++m) {  // the first model's rejected peaks and votes are reported
+    peaks.push_back(findAllPeaks(members[m], features, options, lowest, m == 0 ? &result.rejected : nullptr,
                                  m == 0 && options.keep_votes ? &result.votes : nullptr, times));
   }
   result.timings.add("activate", times.activate_ms);

@@ -103,11 +103,10 @@ RecognitionResult recognizeFeatures(const Model& model, const Features& features
 // recognize() with several models of the same categories and front end, each trained with its
 // own draw of training's randomness (ensemble.h): the front end runs once, each model votes and
 // finds its peaks down to confidence 0.01, each category's peaks are grouped by object (at most
-// one per model), and each group whose mean best possible confidence reaches min_confidence is
-// verified once, on the most confident model's peak, with the first model's training shapes.
-// Its confidence is the mean of the models' calibrated confidences for their own peaks with that
-// fit, 0 for a model without a peak there. The scene's checks and one answer per object follow
-// as for one model. Each model's draws (Model::draws) are models of the ensemble too, except
+// one per model), and in each group whose mean best possible confidence reaches min_confidence
+// each model verifies and checks its own peak. The group's answer is its most confident model's,
+// at the mean of the models' confidences (0 for a model without an answer there); one answer per
+// object follows as for one model. Each model's draws (Model::draws) are models of the ensemble too, except
 // with the seed's preset or a separated codebook.
 // Throws Error(kInvalidInput) for no models, models whose front ends or categories differ, or
 // several models with the seed preset; otherwise as recognize().

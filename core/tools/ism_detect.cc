@@ -154,8 +154,7 @@ int main(int argc, char** argv) {
     for (const auto& file : files) {
       ism::Scene scene = isPng(file) ? ism::loadDepthPng(file, intrinsics) : ism::loadCloudFile(file);
       scene.up = given_up;
-      const ism::RecognitionResult result =
-          models.size() == 1 ? ism::recognize(model, scene, options) : ism::recognizeEnsemble(models, scene, options);
+      const ism::RecognitionResult result = ism::recognizeEnsemble(models, scene, options);
       if (json) {
         nlohmann::json j = ism::toJson(result);
         j["file"] = file;
