@@ -333,6 +333,36 @@ void selectCodewords(const float* row, int codewords, int keypoint, bool knn, in
 
 }  // namespace
 
+DescriptorMatrix balancedRows(const std::vector<DescriptorMatrix>& groups, int max_rows, uint32_t seed) {
+  if (groups.empty()) throw Error(ErrorCode::kInvalidInput, "balanced rows: no groups");
+  Eigen::Index share = std::numeric_limits<Eigen::Index>::max();
+  if (max_rows > 0) {
+    share = std::max<Eigen::Index>(1, max_rows / static_cast<Eigen::Index>(groups.size()));
+  } else {
+    for (const auto& g : groups) share = std::min(share, g.rows());
+  }
+  Eigen::Index rows = 0;
+  for (const auto& g : groups) {
+    if (g.cols() != groups.front().cols()) throw Error(ErrorCode::kInvalidInput, "balanced rows: groups of other widths");
+    rows += std::min(share, g.rows());
+  }
+  std::mt19937 rng(seed);
+  DescriptorMatrix out(rows, groups.front().cols());
+  Eigen::Index at = 0;
+  for (const auto& g : groups) {
+    if (g.rows() <= share) {
+      out.middleRows(at, g.rows()) = g;
+      at += g.rows();
+      continue;
+    }
+    std::vector<Eigen::Index> order(static_cast<size_t>(g.rows()));
+    std::iota(order.begin(), order.end(), 0);
+    std::shuffle(order.begin(), order.end(), rng);
+    for (Eigen::Index i = 0; i < share; ++i) out.row(at++) = g.row(order[static_cast<size_t>(i)]);
+  }
+  return out;
+}
+
 KMeansResult kmeans(const DescriptorMatrix& data, const KMeansParams& params) {
   if (data.rows() == 0 || data.cols() == 0) {
     throw Error(ErrorCode::kInvalidInput, "k-means: no descriptors to cluster");

@@ -26,6 +26,14 @@ struct KMeansResult {
 // k-means++ seeding, Lloyd iterations. k is clamped to the number of distinct samples.
 KMeansResult kmeans(const DescriptorMatrix& data, const KMeansParams& params);
 
+// The rows k-means clusters when every group (a category's descriptors) is to weigh the same:
+// max_rows / groups.size() rows of each group, drawn at random with `seed`, or all of a group that
+// has fewer; with max_rows 0, as many of each as the smallest group has. Pooled rows give the
+// categories codewords by how many descriptors their meshes happen to make, and k-means spends its
+// centres where descriptors are dense (Jurie and Triggs, "Creating efficient codebooks for visual
+// recognition", ICCV 2005). Throws Error(kInvalidInput) for no groups or groups of other widths.
+DescriptorMatrix balancedRows(const std::vector<DescriptorMatrix>& groups, int max_rows, uint32_t seed);
+
 enum class ActivationStrategy { kKnn, kCutoff };
 
 struct ActivationParams {

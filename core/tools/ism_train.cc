@@ -42,6 +42,11 @@ int main(int argc, char** argv) {
   app.add_option("-o,--output", output, "model file to write")->required();
   app.add_option("--codebook", codebook, "global, separated or both")->check(CLI::IsMember({"global", "separated", "both"}));
   app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(ism::cli::positive());
+  std::string codebook_sampling = params.balanced_global_codebook ? "balanced" : "pooled";
+  app.add_option("--codebook-sampling", codebook_sampling,
+                 "the descriptors the global codebook's k-means clusters: a sample of every category's pooled (the "
+                 "seed's), or balanced, as many of each category's")
+      ->check(CLI::IsMember({"pooled", "balanced"}));
   app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(ism::cli::positive());
   app.add_option("--activation-k", params.knn.k,
                  "codewords each descriptor activates (k-NN activation), with which thresholds and calibration are made")
@@ -206,6 +211,7 @@ int main(int argc, char** argv) {
       return 2;
     }
   }
+  params.balanced_global_codebook = codebook_sampling == "balanced";
   params.global_codebook = codebook != "separated";
   if (draws > 1 && !params.global_codebook) {
     std::cerr << "ism-train: --draws needs the global codebook (an ensemble answers with it): drop --codebook separated\n";

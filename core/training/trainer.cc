@@ -195,11 +195,10 @@ void setKnownFloor(Features& features) {
   for (size_t k = 0; k < features.size(); ++k) features.heights[k] = features.positions[k].z();
 }
 
-// k-means of the scans' descriptors into a codebook, with its progress line.
-Codebook codebookOf(const std::vector<const TrainingScan*>& scans, const KMeansParams& params, const std::string& name,
+// k-means of descriptors into a codebook, with its progress line.
+Codebook codebookOf(const DescriptorMatrix& descriptors, const KMeansParams& params, const std::string& name,
                     const TrainingParams& training) {
   const auto start = Clock::now();
-  const DescriptorMatrix descriptors = stackDescriptors(scans);
   const KMeansResult km = kmeans(descriptors, params);
   Codebook codebook(km.centers);
   if (training.progress) {
@@ -218,15 +217,25 @@ std::vector<const Codebook*> trainCodebooks(CodebookType type, const std::vector
                                             Model& model) {
   std::vector<const Codebook*> codebook_of(by_category.size());
   if (type == CodebookType::kGlobal) {
-    std::vector<const TrainingScan*> all;
-    for (const auto& s : scans) all.push_back(&s);
-    model.global_codebook = codebookOf(all, params.global_kmeans, "global", params);
+    DescriptorMatrix descriptors;
+    if (params.balanced_global_codebook) {
+      std::vector<DescriptorMatrix> groups;
+      for (const auto& c : by_category) groups.push_back(stackDescriptors(c.scans));
+      // A stream of the seed apart from the one k-means draws its starting centres from.
+      descriptors = balancedRows(groups, params.global_kmeans.max_samples, params.global_kmeans.seed + 17u);
+    } else {
+      std::vector<const TrainingScan*> all;
+      for (const auto& s : scans) all.push_back(&s);
+      descriptors = stackDescriptors(all);
+    }
+    model.global_codebook = codebookOf(descriptors, params.global_kmeans,
+                                       params.balanced_global_codebook ? "global (balanced)" : "global", params);
     std::fill(codebook_of.begin(), codebook_of.end(), &*model.global_codebook);
     return codebook_of;
   }
   for (size_t c = 0; c < by_category.size(); ++c) {
     CategoryModel& category = model.categories[c];
-    category.own_codebook = codebookOf(by_category[c].scans, params.separated_kmeans, category.name, params);
+    category.own_codebook = codebookOf(stackDescriptors(by_category[c].scans), params.separated_kmeans, category.name, params);
     codebook_of[c] = &*category.own_codebook;
   }
   return codebook_of;

@@ -9,7 +9,9 @@
 #include <limits>
 #include <numeric>
 #include <random>
+#include <set>
 #include <string>
+#include <utility>
 #include <vector>
 
 #ifdef _OPENMP
@@ -76,6 +78,40 @@ TEST(KMeans, SubsamplesLargeInputs) {
   const KMeansResult result = kmeans(data, params);
   EXPECT_EQ(result.centers.rows(), 4);
   EXPECT_GT(result.iterations, 0);
+}
+
+// Group g's rows are (g, i): the group and the row within it.
+DescriptorMatrix group(int g, int size) {
+  DescriptorMatrix m(size, 2);
+  for (int i = 0; i < size; ++i) m.row(i) << static_cast<float>(g), static_cast<float>(i);
+  return m;
+}
+
+std::vector<int> perGroup(const DescriptorMatrix& rows, int groups) {
+  std::vector<int> count(static_cast<size_t>(groups), 0);
+  for (Eigen::Index r = 0; r < rows.rows(); ++r) ++count[static_cast<size_t>(rows(r, 0))];
+  return count;
+}
+
+TEST(BalancedRows, EachGroupGivesItsShareOrAllItHas) {
+  const std::vector<DescriptorMatrix> groups = {group(0, 1000), group(1, 50), group(2, 3), group(3, 400)};
+  const DescriptorMatrix rows = balancedRows(groups, 400, 7);
+  EXPECT_EQ(perGroup(rows, 4), (std::vector<int>{100, 50, 3, 100}));
+  // Drawn without replacement: no row of a group twice.
+  std::set<std::pair<float, float>> seen;
+  for (Eigen::Index r = 0; r < rows.rows(); ++r) EXPECT_TRUE(seen.insert({rows(r, 0), rows(r, 1)}).second);
+  EXPECT_EQ(balancedRows(groups, 400, 7), rows);  // the seed decides the draw
+  EXPECT_NE(balancedRows(groups, 400, 8), rows);
+}
+
+TEST(BalancedRows, WithoutALimitAsManyOfEachAsTheSmallestHas) {
+  const DescriptorMatrix rows = balancedRows({group(0, 30), group(1, 5), group(2, 8)}, 0, 1);
+  EXPECT_EQ(perGroup(rows, 3), (std::vector<int>{5, 5, 5}));
+}
+
+TEST(BalancedRows, RejectsNoGroupsAndGroupsOfOtherWidths) {
+  EXPECT_THROW(balancedRows({}, 100, 1), Error);
+  EXPECT_THROW(balancedRows({group(0, 10), DescriptorMatrix::Zero(10, 3)}, 100, 1), Error);
 }
 
 TEST(KMeans, RejectsEmptyInput) {

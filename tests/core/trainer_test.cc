@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "core/common/error.h"
 #include "core/model/model_file.h"
@@ -105,6 +106,33 @@ TEST(TrainFromScans, ThresholdsOfDissimilarModelsAreFlooredAndTheStatisticsKept)
               mean - std, 1e-3f);
   params.threshold_floor = 1.5f;
   EXPECT_THROW(trainFromScans(handMadeScans("stool", 3, 2), {"stool"}, params), Error);
+}
+
+// A stool's scans beside ten times as many bed scans: pooled, the global codebook's k-means
+// gets every descriptor (and samples max_samples of them, 1 in 11 a stool's); balanced, as many of
+// each category's, half of max_samples each.
+TEST(TrainFromScans, ABalancedCodebookClustersAsManyDescriptorsOfEachCategory) {
+  std::vector<TrainingScan> scans = handMadeScans("stool", 1);
+  for (uint32_t copy = 0; copy < 10; ++copy) {
+    const auto beds = handMadeScans("bed", 2 + copy);
+    scans.insert(scans.end(), beds.begin(), beds.end());
+  }
+  TrainingParams params = smallParams();
+  params.separated_codebooks = false;
+  params.global_kmeans.max_samples = 4 * kKeypoints;
+  const auto codebookLine = [&](bool balanced) {
+    params.balanced_global_codebook = balanced;
+    std::string line;
+    params.progress = [&](const std::string& l) {
+      if (l.find("codebook: k-means") != std::string::npos) line = l;
+    };
+    trainFromScans(scans, {"stool", "bed"}, params);
+    return line;
+  };
+  const int all = static_cast<int>(scans.size()) * kKeypoints;
+  EXPECT_EQ(codebookLine(false).rfind("global codebook: k-means of " + std::to_string(all) + " descriptors", 0), 0u);
+  EXPECT_EQ(codebookLine(true).rfind("global (balanced) codebook: k-means of " + std::to_string(4 * kKeypoints) + " descriptors", 0),
+            0u);
 }
 
 TEST(TrainFromScans, NeedsTwoModelsPerCategory) {
