@@ -341,6 +341,7 @@ TrainingParams seedTrainingParams() {
   params.shape_spacing = 0;
   params.noise.projector_shadow = false;
   params.views.min_distance = 0;
+  params.balanced_global_codebook = false;
   return params;
 }
 
