@@ -44,8 +44,8 @@ int main(int argc, char** argv) {
   app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(ism::cli::positive());
   std::string codebook_sampling = params.balanced_global_codebook ? "balanced" : "pooled";
   app.add_option("--codebook-sampling", codebook_sampling,
-                 "the descriptors the global codebook's k-means clusters: a sample of every category's pooled (the "
-                 "seed's), or balanced, as many of each category's")
+                 "the descriptors the global codebook's k-means clusters: balanced, as many of each category's "
+                 "(the default preset), or pooled, a sample of all (the seed's)")
       ->check(CLI::IsMember({"pooled", "balanced"}));
   app.add_option("--k-separated", params.separated_kmeans.k, "codewords per category codebook")->check(ism::cli::positive());
   app.add_option("--activation-k", params.knn.k,
