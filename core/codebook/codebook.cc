@@ -331,6 +331,15 @@ void selectCodewords(const float* row, int codewords, int keypoint, bool knn, in
   for (auto it = order->begin(); it != end; ++it) out->push_back({keypoint, *it, std::sqrt(row[*it])});
 }
 
+// n rows of `from` drawn without replacement (a shuffle of all its rows' order, then the first n)
+// into `to`, from row `at` on.
+void copyRandomRows(const DescriptorMatrix& from, Eigen::Index n, std::mt19937& rng, DescriptorMatrix& to, Eigen::Index at) {
+  std::vector<Eigen::Index> order(static_cast<size_t>(from.rows()));
+  std::iota(order.begin(), order.end(), 0);
+  std::shuffle(order.begin(), order.end(), rng);
+  for (Eigen::Index i = 0; i < n; ++i) to.row(at + i) = from.row(order[static_cast<size_t>(i)]);
+}
+
 }  // namespace
 
 DescriptorMatrix balancedRows(const std::vector<DescriptorMatrix>& groups, int max_rows, uint32_t seed) {
@@ -355,10 +364,8 @@ DescriptorMatrix balancedRows(const std::vector<DescriptorMatrix>& groups, int m
       at += g.rows();
       continue;
     }
-    std::vector<Eigen::Index> order(static_cast<size_t>(g.rows()));
-    std::iota(order.begin(), order.end(), 0);
-    std::shuffle(order.begin(), order.end(), rng);
-    for (Eigen::Index i = 0; i < share; ++i) out.row(at++) = g.row(order[static_cast<size_t>(i)]);
+    copyRandomRows(g, share, rng, out, at);
+    at += share;
   }
   return out;
 }
@@ -373,11 +380,8 @@ KMeansResult kmeans(const DescriptorMatrix& data, const KMeansParams& params) {
   std::mt19937 rng(params.seed);
   DescriptorMatrix subset;
   if (params.max_samples > 0 && data.rows() > params.max_samples) {
-    std::vector<Eigen::Index> order(static_cast<size_t>(data.rows()));
-    std::iota(order.begin(), order.end(), 0);
-    std::shuffle(order.begin(), order.end(), rng);
     subset.resize(params.max_samples, data.cols());
-    for (int i = 0; i < params.max_samples; ++i) subset.row(i) = data.row(order[i]);
+    copyRandomRows(data, params.max_samples, rng, subset, 0);
   }
   const DescriptorMatrix& x = subset.rows() > 0 ? subset : data;
   const Eigen::Index n = x.rows();
