@@ -134,6 +134,15 @@ int main(int argc, char** argv) {
   app.add_option("--calibration-objects", params.calibration.max_objects,
                  "held-out furniture placed in each calibration room (1 to this many)")
       ->check(ism::cli::positive());
+  app.add_option("--grouped-rooms", params.calibration.grouped_rooms,
+                 "share of the calibration rooms that show a table with other furniture pulled up to it "
+                 "(0 = every room stands its furniture apart)")
+      ->check(CLI::Range(0.0, 1.0))
+      ->capture_default_str();
+  app.add_option("--grouped-objects", params.calibration.max_grouped,
+                 "furniture pulled up to the table of a grouped calibration room (1 to this many)")
+      ->check(ism::cli::positive())
+      ->capture_default_str();
   const std::map<std::string, ism::FitTerms> fit_terms{
       {"both", ism::FitTerms::kBoth}, {"inliers", ism::FitTerms::kInliers}, {"free-space", ism::FitTerms::kFreeSpace}};
   app.add_option("--fit-terms", params.calibration.fit_terms,

@@ -72,7 +72,8 @@ Model foldModel(const Model& model, const std::vector<std::vector<TrainingVote>>
 
 CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& furniture,
                                        const std::vector<const PlacedObject*>& background,
-                                       const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng) {
+                                       const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng,
+                                       const std::vector<const PlacedObject*>& tables) {
   std::uniform_real_distribution<float> unit(0.0f, 1.0f);
   const auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
   std::vector<SceneObject> objects;
@@ -90,20 +91,69 @@ CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& f
     }
     return false;
   };
+  const auto pick = [&](const std::vector<const PlacedObject*>& from) -> const PlacedObject& {
+    return *from[static_cast<size_t>(unit(rng) * static_cast<float>(from.size())) % from.size()];
+  };
   // One of `from`, drawn at random, standing apart from the others at a random heading, as its
   // category's object or as clutter (""); false where no free place was found.
   const auto standOne = [&](const std::vector<const PlacedObject*>& from, bool clutter) {
-    const PlacedObject& o = *from[static_cast<size_t>(unit(rng) * static_cast<float>(from.size())) % from.size()];
+    const PlacedObject& o = pick(from);
     const Eigen::Vector3f size = o.mesh->bounds().sizes();
     Eigen::Vector2f at;
     if (!place(0.5f * std::hypot(size.x(), size.y()), at)) return false;
     objects.push_back({clutter ? std::string() : o.category, *o.mesh, at.x(), at.y(), uniform(-3.1416f, 3.1416f)});
     return true;
   };
+  // A table with others pulled up to it: `seated` (furniture that is not a table) at its sides,
+  // its centre from the table's edge (half of it under the top) to half its depth out (just clear),
+  // at a random heading (a mesh's front is not known), apart from each other.
+  const auto standGroup = [&](const std::vector<const PlacedObject*>& seated) {
+    const PlacedObject& table = pick(tables);
+    const Eigen::Vector3f table_size = table.mesh->bounds().sizes();
+    Eigen::Vector2f at;
+    if (!place(0.5f * std::hypot(table_size.x(), table_size.y()), at)) return false;
+    const float table_yaw = uniform(-3.1416f, 3.1416f);
+    objects.push_back({table.category, *table.mesh, at.x(), at.y(), table_yaw});
+    const Eigen::Rotation2Df to_room(table_yaw);
+    std::vector<std::pair<Eigen::Vector2f, float>> members;  // the group's own, closer than `taken` stands things
+    const int count = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_grouped));
+    for (int i = 0; i < count; ++i) {
+      const PlacedObject& o = pick(seated);
+      const Eigen::Vector3f size = o.mesh->bounds().sizes();
+      const float depth = 0.5f * std::min(size.x(), size.y());
+      for (int attempt = 0; attempt < 20; ++attempt) {
+        const int side = static_cast<int>(unit(rng) * 4.0f) % 4;  // +x, -x, +y, -y of the table
+        const float across = 0.5f * table_size[side / 2] + uniform(0.0f, 1.0f) * depth;
+        const float along = uniform(-0.5f, 0.5f) * table_size[1 - side / 2];
+        Eigen::Vector2f local = side / 2 == 0 ? Eigen::Vector2f(across, along) : Eigen::Vector2f(along, across);
+        if (side % 2 == 1) local = -local;
+        const Eigen::Vector2f spot = at + to_room * local;
+        const bool free = std::all_of(members.begin(), members.end(), [&](const auto& m) {
+          return (m.first - spot).norm() > m.second + depth + 0.05f;
+        });
+        if (!free) continue;
+        members.emplace_back(spot, depth);
+        taken.emplace_back(spot, 0.5f * std::hypot(size.x(), size.y()));
+        objects.push_back({o.category, *o.mesh, spot.x(), spot.y(), uniform(-3.1416f, 3.1416f)});
+        break;
+      }
+    }
+    return true;
+  };
   CalibrationRoom room;
-  const int count = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_objects));
-  for (int i = 0; i < std::min<int>(count, static_cast<int>(furniture.size())); ++i) {
-    if (standOne(furniture, false)) room.categories.push_back(objects.back().category);
+  std::vector<const PlacedObject*> seated;
+  for (const PlacedObject* o : furniture) {
+    if (std::find(tables.begin(), tables.end(), o) == tables.end()) seated.push_back(o);
+  }
+  // Drawn only where groups can be, so that rooms without them stay as they were.
+  const bool grouped = params.grouped_rooms > 0 && !tables.empty() && !seated.empty() && unit(rng) < params.grouped_rooms;
+  if (grouped && standGroup(seated)) {
+    for (size_t i = 0; i < objects.size(); ++i) room.categories.push_back(objects[i].category);
+  } else {
+    const int count = 1 + static_cast<int>(unit(rng) * static_cast<float>(params.max_objects));
+    for (int i = 0; i < std::min<int>(count, static_cast<int>(furniture.size())); ++i) {
+      if (standOne(furniture, false)) room.categories.push_back(objects.back().category);
+    }
   }
   // Walls at the room's far side and one side, shelves and cabinets against or near them.
   objects.push_back({"", boxMesh({-3.5f, 2.2f, 0}, {3.5f, 2.3f, 2.5f}), 0, 0, 0});
@@ -225,10 +275,15 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
   for (const auto& o : objects) {
     if (o.category == kBackgroundCategory) background.push_back(&o);
   }
+  // Tables (flat-topped categories, top_extent.h) that grouped rooms pull the other furniture up to.
+  std::vector<bool> table_category(model.categories.size(), false);
+  if (cp.grouped_rooms > 0) {
+    for (size_t c = 0; c < model.categories.size(); ++c) table_category[c] = flatTopped(model.categories[c]);
+  }
   for (int fold = 0; fold < cp.folds; ++fold) {
     // A category's fold holds models m with m % folds == fold, unless that would leave it none.
     std::vector<std::vector<bool>> held_out(model.categories.size());
-    std::vector<const PlacedObject*> candidates;
+    std::vector<const PlacedObject*> candidates, tables;
     for (size_t c = 0; c < model.categories.size(); ++c) {
       held_out[c].assign(static_cast<size_t>(models[c]), false);
       for (int m = fold; m < models[c]; m += cp.folds) held_out[c][static_cast<size_t>(m)] = true;
@@ -240,6 +295,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
       const auto index = static_cast<size_t>(c - model.categories.data());
       if (static_cast<size_t>(o.model_index) < held_out[index].size() && held_out[index][static_cast<size_t>(o.model_index)]) {
         candidates.push_back(&o);
+        if (table_category[index]) tables.push_back(&o);
       }
     }
     if (candidates.empty()) continue;
@@ -257,7 +313,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     verification.fit_terms = cp.fit_terms;
     parallelFor(cp.rooms_per_fold, trainingThreads(params.threads), [&](int r) {
       std::mt19937 rng(cp.seed + static_cast<uint32_t>(fold * 100003 + r));
-      const CalibrationRoom room = composeCalibrationRoom(candidates, background, cp, params.noise, rng);
+      const CalibrationRoom room = composeCalibrationRoom(candidates, background, cp, params.noise, rng, tables);
       if (room.scene.scene.cloud->size() < 1000) return;  // the camera saw next to nothing
       std::vector<CalibrationSample> found;
       const auto look = [&](const Scene& scene, bool cloud) {

@@ -39,9 +39,12 @@ struct CalibrationRoom {
 // floor, a wall or two behind them, boxes, and up to params.background_objects of `background`
 // (beds, cabinets, shelves: real rooms' false peaks stand on such furniture, which fits a couch's
 // or a table's shape far better than a box does), seen by `noise`'s sensor from a random camera.
+// A share of the rooms (params.grouped_rooms) shows instead one of `tables` (those of `furniture`
+// that are flat-topped) with the rest of `furniture` pulled up to it.
 CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& furniture,
                                        const std::vector<const PlacedObject*>& background,
-                                       const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng);
+                                       const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng,
+                                       const std::vector<const PlacedObject*>& tables = {});
 
 // One labelled peak: its score and support and whether an object of its category was there.
 struct CalibrationSample {

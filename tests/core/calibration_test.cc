@@ -85,6 +85,53 @@ TEST(CalibrationRoom, BackgroundFurnitureStandsAmongTheClutter) {
   }
 }
 
+TEST(CalibrationRoom, GroupedRoomsPullTheOtherFurnitureUpToATable) {
+  const Mesh table_mesh = testing::boxMesh({-0.6f, -0.4f, 0}, {0.6f, 0.4f, 0.75f});
+  const Mesh chair_mesh = testing::boxMesh({-0.25f, -0.25f, 0}, {0.25f, 0.25f, 0.9f});
+  const PlacedObject table{"table", 0, &table_mesh}, chair{"chair", 0, &chair_mesh};
+  CalibrationParams params;
+  params.grouped_rooms = 1;
+  NoiseParams noise;
+  int chairs = 0, most = 0;
+  for (uint32_t seed = 1; seed <= 12; ++seed) {
+    std::mt19937 rng(seed);
+    const CalibrationRoom room = composeCalibrationRoom({&table, &chair}, {}, params, noise, rng, {&table});
+    ASSERT_GE(room.categories.size(), 2u) << seed;
+    ASSERT_LE(room.categories.size(), 1u + static_cast<size_t>(params.max_grouped)) << seed;
+    ASSERT_EQ(room.categories[0], "table") << seed;
+    const GroundTruthObject& top = room.scene.objects[0];
+    const Eigen::Rotation2Df to_table(-top.yaw);
+    for (size_t i = 1; i < room.categories.size(); ++i) {
+      ASSERT_EQ(room.categories[i], "chair") << seed;
+      // The chair's centre from the table's edge (half under it) to half its depth out, beside one side.
+      const Eigen::Vector2f local = to_table * (room.scene.objects[i].center - top.center).head<2>();
+      const float x = std::abs(local.x()), y = std::abs(local.y());
+      const bool beside_x = x >= 0.6f - 1e-3f && x <= 0.85f + 1e-3f && y <= 0.4f + 1e-3f;
+      const bool beside_y = y >= 0.4f - 1e-3f && y <= 0.65f + 1e-3f && x <= 0.6f + 1e-3f;
+      EXPECT_TRUE(beside_x || beside_y) << seed << ": chair at " << local.transpose() << " in the table's frame";
+      for (size_t j = 1; j < i; ++j) {
+        EXPECT_GT((room.scene.objects[j].center - room.scene.objects[i].center).head<2>().norm(), 0.5f) << seed;
+      }
+    }
+    chairs += static_cast<int>(room.categories.size()) - 1;
+    most = std::max(most, static_cast<int>(room.categories.size()) - 1);
+  }
+  EXPECT_GE(most, 3) << "up to 4 chairs at a table";
+  EXPECT_GE(chairs, 18);
+  // Without groups the rooms are those composed without tables: the same draws.
+  params.grouped_rooms = 0;
+  for (uint32_t seed = 1; seed <= 4; ++seed) {
+    std::mt19937 a(seed), b(seed);
+    const CalibrationRoom with = composeCalibrationRoom({&table, &chair}, {}, params, noise, a, {&table});
+    const CalibrationRoom without = composeCalibrationRoom({&table, &chair}, {}, params, noise, b);
+    ASSERT_EQ(with.categories, without.categories);
+    ASSERT_EQ(with.scene.objects.size(), without.scene.objects.size());
+    for (size_t i = 0; i < with.scene.objects.size(); ++i) {
+      EXPECT_EQ(with.scene.objects[i].center, without.scene.objects[i].center) << seed;
+    }
+  }
+}
+
 }  // namespace
 }  // namespace ism
 
