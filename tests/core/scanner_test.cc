@@ -3,10 +3,12 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <set>
 #include <tuple>
+#include <vector>
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
@@ -20,9 +22,19 @@ namespace {
 using testing::boxMesh;
 using testing::syntheticFurniture;
 
+// The files writeTemp wrote, removed when the test binary exits.
+struct TempFiles {
+  std::vector<std::string> paths;
+  ~TempFiles() {
+    for (const auto& path : paths) std::remove(path.c_str());
+  }
+};
+
 std::string writeTemp(const std::string& name, const std::string& content) {
+  static TempFiles written;
   const std::string path = ::testing::TempDir() + "ism_scanner_" + std::to_string(getpid()) + "_" + name;
   std::ofstream(path, std::ios::binary) << content;
+  written.paths.push_back(path);
   return path;
 }
 
@@ -512,6 +524,7 @@ TEST(DepthPng, SavedDepthRoundTripsInMillimetres) {
     ASSERT_EQ(png.pixels[i], static_cast<uint16_t>(std::lround(image.depth[i] * 1000))) << i;
   }
   EXPECT_THROW(saveDepthPng(image, 1e5f, path), Error);  // 1.5 m does not fit 16 bits at 10 um
+  std::remove(path.c_str());
 }
 
 TEST(SyntheticFurniture, RealSizesAndDeterministicVariants) {
