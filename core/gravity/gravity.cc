@@ -3,6 +3,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "core/common/cpu_features.h"
@@ -206,15 +207,180 @@ struct Tolerance {
   }
 };
 
+// A wall: the extent of its points on its plane along the floor and up, and where it is a
+// connected surface (GravityParams::wall_cell), the cells (wall_cell square) of the pieces of it
+// that make it a wall, grown by one cell all round.
 struct Wall {
   Plane plane;
-  float along_lo, along_hi;    // extent of its points along the floor
-  float height_lo, height_hi;  // and along up
+  Eigen::Vector3f along;  // horizontal, in the plane
+  float along_lo = 0, along_hi = 0, height_lo = 0, height_hi = 0;
+  float along0 = 0, height0 = 0, cell = 0;
+  int cols = 0, rows = 0;
+  std::vector<uint8_t> cells;  // rows x cols, row-major; empty: the whole extent
+  bool holds(const Eigen::Vector3f& p, const Eigen::Vector3f& up) const {
+    constexpr float kMargin = 0.1f;  // a wall's points a little beyond its sampled extent
+    const float a = along.dot(p), h = up.dot(p);
+    if (a < along_lo - kMargin || a > along_hi + kMargin || h < height_lo - kMargin || h > height_hi + kMargin) return false;
+    if (cells.empty()) return true;
+    const auto col = static_cast<int>(std::floor((a - along0) / cell));
+    const auto row = static_cast<int>(std::floor((h - height0) / cell));
+    return col >= 0 && col < cols && row >= 0 && row < rows && cells[static_cast<size_t>(row * cols + col)] != 0;
+  }
 };
 
-// Walls: vertical planes (through two points and up) with most support whose points span a
-// wall's height and width. A large vertical face that is not a wall (a wardrobe is, for the
-// purpose) is set aside and the search goes on.
+// Too few points per occupied cell (fewer than this on average) and a plane's points cannot show
+// whether they make a surface or lines: a 50,000-point sample of a fused apartment holds 35
+// points per square metre of wall, 1-2 per cell. Such a wall is the extent of all its points.
+constexpr float kMinPointsPerCell = 4.0f;
+
+// The wall of the points `inliers` (each: along, height) on `plane`: their extent (2nd to 98th
+// percentile), if it spans a wall's height and width.
+std::optional<Wall> extentWall(const Plane& plane, const Eigen::Vector3f& along, const std::vector<Eigen::Vector2f>& inliers,
+                               const GravityParams& params) {
+  std::vector<float> alongs, heights;
+  for (const auto& q : inliers) {
+    alongs.push_back(q.x());
+    heights.push_back(q.y());
+  }
+  Wall wall;
+  wall.plane = plane;
+  wall.along = along;
+  wall.along_lo = percentile(alongs, 0.02f);
+  wall.along_hi = percentile(alongs, 0.98f);
+  wall.height_lo = percentile(heights, 0.02f);
+  wall.height_hi = percentile(heights, 0.98f);
+  if (wall.height_hi - wall.height_lo < params.wall_min_height || wall.along_hi - wall.along_lo < params.wall_min_width) {
+    return std::nullopt;
+  }
+  return wall;
+}
+
+// The wall on `plane` that the points `inliers` (each: along, height) make, if they make one: a
+// wall is one connected surface, so its points are joined through the cells they occupy where
+// those make a surface (8-neighbours, after opening), and the largest piece must span
+// params.wall_min_height and wall_min_width by itself. Points that only share the plane - a
+// chair's back, a desk's leg and a shelf's side cut by one vertical plane through a room - span as
+// much together but not one by one. The other pieces at least wall_min_height tall are the same
+// wall seen around what stands before it. Where the points are too sparse to tell (fewer than
+// kMinPointsPerCell per occupied cell), extentWall decides. (Planar regions as connected components of a plane's
+// inliers: Trevor, Gedikli, Rusu and Christensen, "Efficient organized point cloud segmentation
+// with connected components", 2013; the opening is mathematical morphology's, Serra 1982.)
+std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& along,
+                                  const std::vector<Eigen::Vector2f>& inliers, const GravityParams& params) {
+  if (inliers.empty()) return std::nullopt;
+  if (!(params.wall_cell > 0)) return extentWall(plane, along, inliers, params);
+  Wall wall;
+  wall.plane = plane;
+  wall.along = along;
+  wall.cell = params.wall_cell;
+  Eigen::Vector2f lo = inliers[0], hi = inliers[0];
+  for (const auto& q : inliers) {
+    lo = lo.cwiseMin(q);
+    hi = hi.cwiseMax(q);
+  }
+  // One cell of margin all round, for growing the pieces into it.
+  wall.along0 = lo.x() - wall.cell;
+  wall.height0 = lo.y() - wall.cell;
+  wall.cols = static_cast<int>((hi.x() - wall.along0) / wall.cell) + 2;
+  wall.rows = static_cast<int>((hi.y() - wall.height0) / wall.cell) + 2;
+  if (static_cast<long>(wall.cols) * wall.rows > 4'000'000) return std::nullopt;  // no room is 300 m long
+  const auto cellOf = [&](const Eigen::Vector2f& q) {
+    return static_cast<int>((q.y() - wall.height0) / wall.cell) * wall.cols + static_cast<int>((q.x() - wall.along0) / wall.cell);
+  };
+  const size_t n = static_cast<size_t>(wall.cols) * static_cast<size_t>(wall.rows);
+  std::vector<uint8_t> occupied(n, 0);
+  size_t occupied_cells = 0;
+  for (const auto& q : inliers) {
+    uint8_t& o = occupied[static_cast<size_t>(cellOf(q))];
+    occupied_cells += o == 0;
+    o = 1;
+  }
+  if (static_cast<float>(inliers.size()) < kMinPointsPerCell * static_cast<float>(occupied_cells)) {
+    return extentWall(plane, along, inliers, params);
+  }
+  // The occupied cells opened (eroded, then dilated, by a 3 x 3 block): what is left is surface.
+  // A plane through a room also cuts other surfaces along lines - a table top's edge, a seat -
+  // and those lines join up through cells as a surface does, but hold no 3 x 3 block of them.
+  const auto forNeighbours = [&](int c, const auto& f) {
+    const int row = c / wall.cols, col = c % wall.cols;
+    for (int dr = -1; dr <= 1; ++dr) {
+      for (int dc = -1; dc <= 1; ++dc) {
+        const int r = row + dr, k = col + dc;
+        if (r >= 0 && r < wall.rows && k >= 0 && k < wall.cols) f(r * wall.cols + k);
+      }
+    }
+  };
+  std::vector<uint8_t> opened(n, 0);
+  for (size_t c = 0; c < n; ++c) {
+    if (!occupied[c]) continue;
+    int around = 0;
+    forNeighbours(static_cast<int>(c), [&](int d) { around += occupied[static_cast<size_t>(d)]; });
+    if (around == 9) forNeighbours(static_cast<int>(c), [&](int d) { opened[static_cast<size_t>(d)] = 1; });
+  }
+  std::vector<int> piece(n, -2);  // -2 not surface, -1 not yet joined to a piece
+  for (size_t c = 0; c < n; ++c) {
+    if (opened[c]) piece[c] = -1;
+  }
+  struct Extent {
+    Eigen::Vector2f lo, hi;
+    size_t points = 0;
+  };
+  std::vector<Extent> extents;
+  std::vector<int> stack;
+  for (size_t start = 0; start < piece.size(); ++start) {
+    if (piece[start] != -1) continue;
+    const int id = static_cast<int>(extents.size());
+    extents.push_back({Eigen::Vector2f::Constant(INFINITY), Eigen::Vector2f::Constant(-INFINITY), 0});
+    piece[start] = id;
+    stack.assign(1, static_cast<int>(start));
+    while (!stack.empty()) {
+      const int c = stack.back();
+      stack.pop_back();
+      forNeighbours(c, [&](int d) {
+        int& next = piece[static_cast<size_t>(d)];
+        if (next != -1) return;
+        next = id;
+        stack.push_back(d);
+      });
+    }
+  }
+  if (extents.empty()) return std::nullopt;
+  for (const auto& q : inliers) {
+    const int id = piece[static_cast<size_t>(cellOf(q))];
+    if (id < 0) continue;
+    Extent& e = extents[static_cast<size_t>(id)];
+    e.lo = e.lo.cwiseMin(q);
+    e.hi = e.hi.cwiseMax(q);
+    ++e.points;
+  }
+  const auto largest = std::max_element(extents.begin(), extents.end(),
+                                        [](const Extent& a, const Extent& b) { return a.points < b.points; });
+  const Eigen::Vector2f span = largest->hi - largest->lo;
+  if (span.y() < params.wall_min_height || span.x() < params.wall_min_width) return std::nullopt;
+  std::vector<uint8_t> kept(extents.size(), 0);
+  wall.along_lo = wall.height_lo = INFINITY;
+  wall.along_hi = wall.height_hi = -INFINITY;
+  for (size_t i = 0; i < extents.size(); ++i) {
+    kept[i] = &extents[i] == &*largest || extents[i].hi.y() - extents[i].lo.y() >= params.wall_min_height;
+    if (!kept[i]) continue;
+    // As far as the cells grown from its pieces reach: the cells decide.
+    wall.along_lo = std::min(wall.along_lo, extents[i].lo.x() - 2 * wall.cell);
+    wall.along_hi = std::max(wall.along_hi, extents[i].hi.x() + 2 * wall.cell);
+    wall.height_lo = std::min(wall.height_lo, extents[i].lo.y() - 2 * wall.cell);
+    wall.height_hi = std::max(wall.height_hi, extents[i].hi.y() + 2 * wall.cell);
+  }
+  wall.cells.assign(n, 0);
+  for (size_t c = 0; c < n; ++c) {
+    if (piece[c] >= 0 && kept[static_cast<size_t>(piece[c])]) {
+      forNeighbours(static_cast<int>(c), [&](int d) { wall.cells[static_cast<size_t>(d)] = 1; });
+    }
+  }
+  return wall;
+}
+
+// Walls: vertical planes (through two points and up) with most support whose points make a
+// connected surface of a wall's height and width (connectedWall). A large vertical face that is
+// not a wall (a wardrobe is, for the purpose) is set aside and the search goes on.
 std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vector3f& up, const Tolerance& tolerance,
                             const GravityParams& params) {
   std::vector<Wall> walls;
@@ -245,21 +411,14 @@ std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vect
     Plane plane = refine(best, free, params.inlier_distance);
     if (std::abs(plane.normal.dot(up)) > max_sin) plane = best;
     const Eigen::Vector3f along = up.cross(plane.normal).normalized();
-    std::vector<float> heights, alongs;
+    std::vector<Eigen::Vector2f> inliers;
     std::vector<Eigen::Vector3f> rest;
     for (const auto& p : free) {
       const float d = std::abs(plane.distance(p));
-      if (d <= params.inlier_distance) {
-        heights.push_back(up.dot(p));
-        alongs.push_back(along.dot(p));
-      }
+      if (d <= params.inlier_distance) inliers.emplace_back(along.dot(p), up.dot(p));
       if (d > tolerance(p)) rest.push_back(p);
     }
-    Wall wall{plane, percentile(alongs, 0.02f), percentile(alongs, 0.98f), percentile(heights, 0.02f),
-              percentile(heights, 0.98f)};
-    if (wall.height_hi - wall.height_lo >= params.wall_min_height && wall.along_hi - wall.along_lo >= params.wall_min_width) {
-      walls.push_back(wall);
-    }
+    if (auto wall = connectedWall(plane, along, inliers, params)) walls.push_back(std::move(*wall));
     free = std::move(rest);
   }
   return walls;
@@ -301,9 +460,6 @@ GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const 
   }
   const std::vector<Wall> walls = findWalls(std::move(free), g.up, tolerance, params);
   g.walls = static_cast<int>(walls.size());
-  constexpr float kMargin = 0.1f;  // a wall's points a little beyond its sampled extent
-  std::vector<Eigen::Vector3f> wall_alongs;
-  for (const Wall& w : walls) wall_alongs.push_back(g.up.cross(w.plane.normal).normalized());
   for (size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3f& p = points[i];
     const float tol = tolerance(p);
@@ -312,14 +468,8 @@ GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const 
       ++g.floor_points;
       continue;
     }
-    for (size_t k = 0; k < walls.size(); ++k) {
-      const Wall& w = walls[k];
-      if (std::abs(w.plane.distance(p)) > tol) continue;
-      const float along = wall_alongs[k].dot(p), height = g.up.dot(p);
-      if (along < w.along_lo - kMargin || along > w.along_hi + kMargin || height < w.height_lo - kMargin ||
-          height > w.height_hi + kMargin) {
-        continue;
-      }
+    for (const Wall& w : walls) {
+      if (std::abs(w.plane.distance(p)) > tol || !w.holds(p, g.up)) continue;
       result.labels[i] = PlaneLabel::kWall;
       ++g.wall_points;
       break;

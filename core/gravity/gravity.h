@@ -46,6 +46,14 @@ struct GravityParams {
   float wall_min_height = 1.0f;
   float wall_min_width = 1.5f;
   float wall_tilt_deg = 10.0f;
+  // Walls as connected surfaces (gravity.cc, connectedWall): the points on a wall's plane joined
+  // through cells of this size (m) along the floor and up, where they are dense enough to show a
+  // surface, and only the pieces so joined are the wall's. 0: every point on the plane within its
+  // points' extent is the wall's, even where that plane only cuts through furniture (a chair's
+  // back, a desk's front and a shelf's side that happen to line up). Optional (ism-train
+  // --wall-cell 0.15): it gave tum_desk's desk and chairs twice their keypoints and confidence, but
+  // lost 3-6 points of the dev clouds' mAP (docs/EVALUATION.md, "Walls as connected surfaces").
+  float wall_cell = 0.0f;
   int max_walls = 6;
   int iterations = 300;          // RANSAC hypotheses per plane
   int prior_iterations = 64;     // and planes square to the sensor's up when up is not given

@@ -68,6 +68,7 @@ void toProto(const GravityParams& g, v1::GravityParams* out) {
   out->set_iterations(g.iterations);
   out->set_sample_points(static_cast<uint32_t>(g.sample_points));
   out->set_seed(g.seed);
+  out->set_wall_cell(g.wall_cell);
 }
 
 void toProto(const ActivationParams& a, v1::ActivationParams* out) {
@@ -213,7 +214,8 @@ class Reader {
     g.iterations = in.iterations();
     g.sample_points = in.sample_points();
     g.seed = in.seed();
-    const bool valid = g.max_tilt_deg >= 0 && g.max_tilt_deg <= 90 && g.given_up_tolerance_deg >= 0 &&
+    g.wall_cell = in.wall_cell();
+    const bool valid = g.wall_cell >= 0 && g.wall_cell <= 10 && g.max_tilt_deg >= 0 && g.max_tilt_deg <= 90 && g.given_up_tolerance_deg >= 0 &&
                        g.given_up_tolerance_deg <= 90 && g.inlier_distance > 0 && std::isfinite(g.inlier_distance) &&
                        g.noise_sigmas >= 0 && g.min_floor_fraction >= 0 && g.min_floor_fraction <= 1 &&
                        g.max_below_fraction >= 0 && g.max_below_fraction <= 1 && g.below_margin >= 0 &&

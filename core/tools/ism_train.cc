@@ -76,6 +76,10 @@ int main(int argc, char** argv) {
                  "besides the contours, one keypoint per cube of this edge on the surface off the floor and walls "
                  "(m; 0 = contours only, as the seed)")
       ->check(CLI::Range(0.0, 1.0));
+  app.add_option("--wall-cell", params.front_end.gravity.wall_cell,
+                 "walls as connected surfaces of cells of this size (m; 0 = every point on a wall's plane within "
+                 "its extent, the default)")
+      ->check(CLI::Range(0.0, 1.0));
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(ism::cli::nonNegative());
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.

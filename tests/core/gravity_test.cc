@@ -132,6 +132,76 @@ TEST(Gravity, ASmallFloorNearlySquareToThePriorIsFoundAndItsOwnNormalTaken) {
   EXPECT_NEAR(*g.floor_level, 0.0f, 0.01f);
 }
 
+// Points on a grid of `spacing` over the rectangle from `corner` along `a` and `b` (lengths of
+// the vectors), as a dense sensor sees a flat face.
+void addFace(std::vector<Eigen::Vector3f>& points, const Eigen::Vector3f& corner, const Eigen::Vector3f& a,
+             const Eigen::Vector3f& b, float spacing) {
+  for (float s = 0; s <= a.norm(); s += spacing) {
+    for (float t = 0; t <= b.norm(); t += spacing) points.push_back(corner + a.normalized() * s + b.normalized() * t);
+  }
+}
+
+TEST(Gravity, WithWallCellsFacesThatOnlyShareAPlaneAreNoWall) {
+  // A floor, a wall 3 m away, and three cabinets 1.2 m high, 0.4 m wide and 0.8 m apart whose
+  // fronts lie on one vertical plane: together they span 2 m along it and 1.2 m up, as a wall's
+  // points do, but each alone is far narrower than a wall. Dense, as a Kinect frame is (3 cm).
+  std::vector<Eigen::Vector3f> points;
+  addFace(points, {-3, -3, 0}, {6, 0, 0}, {0, 6, 0}, 0.03f);
+  addFace(points, {-3, 3, 0}, {6, 0, 0}, {0, 0, 2.5f}, 0.03f);
+  const size_t before_cabinets = points.size();
+  for (float x : {-1.0f, 0.2f, 1.4f}) {
+    addFace(points, {x - 0.8f, -0.2f, 0.02f}, {0.4f, 0, 0}, {0, 0, 1.2f}, 0.03f);  // the front, at y = -0.2
+    addFace(points, {x - 0.8f, -0.2f, 1.2f}, {0.4f, 0, 0}, {0, 0.4f, 0}, 0.03f);   // the top
+    addFace(points, {x - 0.8f, -0.2f, 0.02f}, {0, 0.4f, 0}, {0, 0, 1.2f}, 0.03f);  // a side
+  }
+  GravityParams params;
+  params.wall_cell = 0.15f;
+  const GravityResult r =
+      estimateGravity(points, Eigen::Vector3f(0, -4, 1.5f), Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ(), params);
+  ASSERT_TRUE(r.gravity.hasFloor());
+  EXPECT_EQ(r.gravity.walls, 1);
+  size_t wall = 0, wall_labelled = 0, cabinets = 0, cabinets_labelled = 0;
+  for (size_t i = 0; i < points.size(); ++i) {
+    if (points[i].z() < 0.3f) continue;  // the floor's band: 2.5 sigma of the depth noise at 7 m is 21 cm
+    if (i < before_cabinets) {
+      ++wall;
+      wall_labelled += r.labels[i] == PlaneLabel::kWall;
+    } else {
+      ++cabinets;
+      cabinets_labelled += r.labels[i] == PlaneLabel::kWall;
+    }
+  }
+  EXPECT_GT(wall_labelled, wall * 95 / 100);
+  EXPECT_EQ(cabinets_labelled, 0u) << "of " << cabinets;
+  // Without the cells (the default), the plane through the cabinets' fronts is a second wall.
+  const GravityResult planes =
+      estimateGravity(points, Eigen::Vector3f(0, -4, 1.5f), Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ());
+  EXPECT_EQ(planes.gravity.walls, 2);
+}
+
+TEST(Gravity, WithWallCellsASparselySampledWallIsStillAWall) {
+  // A fused apartment sampled to 50,000 points holds about 35 points per square metre of wall,
+  // too few per 15 cm cell to show a surface: the wall is then the extent of its points.
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> x(-2.0f, 2.0f), z(0.0f, 2.5f);
+  std::vector<Eigen::Vector3f> points;
+  addFace(points, {-3, -3, 0}, {6, 0, 0}, {0, 6, 0}, 0.1f);
+  const size_t floor = points.size();
+  for (int i = 0; i < 350; ++i) points.push_back({x(rng), 2.0f, z(rng)});
+  GravityParams params;
+  params.wall_cell = 0.15f;
+  const GravityResult r =
+      estimateGravity(points, Eigen::Vector3f(0, -2, 1.5f), Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ(), params);
+  EXPECT_EQ(r.gravity.walls, 1);
+  size_t labelled = 0, wall = 0;
+  for (size_t i = floor; i < points.size(); ++i) {
+    if (points[i].z() < 0.05f) continue;
+    ++wall;
+    labelled += r.labels[i] == PlaneLabel::kWall;
+  }
+  EXPECT_GT(labelled, wall * 95 / 100);
+}
+
 TEST(Gravity, TheHandLevelledFloorOfARealKinectFrame) {
   const std::string dir = std::string(ISM_SHARED_DATA_DIR) + "/real/kinect/";
   if (!std::filesystem::exists(dir + "tum_desk.json")) GTEST_SKIP() << "shared data not present: " << dir;
