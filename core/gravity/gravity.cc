@@ -262,9 +262,10 @@ std::optional<Wall> extentWall(const Plane& plane, const Eigen::Vector3f& along,
 // chair's back, a desk's leg and a shelf's side cut by one vertical plane through a room - span as
 // much together but not one by one. The other pieces at least wall_min_height tall are the same
 // wall seen around what stands before it. Where the points are too sparse to tell (fewer than
-// kMinPointsPerCell per occupied cell), extentWall decides. (Planar regions as connected components of a plane's
-// inliers: Trevor, Gedikli, Rusu and Christensen, "Efficient organized point cloud segmentation
-// with connected components", 2013; the opening is mathematical morphology's, Serra 1982.)
+// kMinPointsPerCell per occupied cell), extentWall decides. (Planar regions as connected
+// components of a plane's inliers: Trevor, Gedikli, Rusu and Christensen, "Efficient organized
+// point cloud segmentation with connected components", 2013; the opening is mathematical
+// morphology's, Serra 1982.)
 std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& along,
                                   const std::vector<Eigen::Vector2f>& inliers, const GravityParams& params) {
   if (inliers.empty()) return std::nullopt;
