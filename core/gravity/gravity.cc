@@ -379,11 +379,86 @@ std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& alo
   return wall;
 }
 
+// How far behind a wall's plane a point may lie and still belong to the wall: skirting boards,
+// radiators and the sensor's noise a few metres away.
+constexpr float kBehindMargin = 0.2f;
+// The cells (m, along the floor and up) in which a wall's own points show where it stands: the
+// smallest of these in which they lie kMinPointsPerCell to an occupied cell on average, so that
+// a dense depth frame resolves a chair's back and a sparse sample of a fused room still shows a
+// wall as one surface.
+constexpr float kSeenThroughCells[] = {0.05f, 0.1f, 0.15f, 0.2f, 0.3f, 0.4f};
+
+// The points of `room` (the scene above the floor) that lie more than kBehindMargin behind
+// `wall`'s plane as seen from `sensor`, within the wall's extent, where its own points (`inliers`:
+// along, height) leave a gap of more than a cell: what the sensor saw through the plane. A wall is
+// opaque and bounds the room, so a camera (or a map's viewpoint in the middle of the room,
+// viewpoint.h) sees next to nothing through it; a plane that only cuts through furniture - a
+// chair's back, a desk's front and a cabinet's side in line (tum_desk) - has the rest of the room
+// in view behind it. Points behind the wall where its own points stand do not count: a fused
+// apartment's next room lies behind its walls. (The free-space argument of Aldoma et al.'s
+// hypothesis verification, 2012, applied to a plane.)
+size_t seenThrough(const Wall& wall, const std::vector<Eigen::Vector2f>& inliers, const std::vector<Eigen::Vector3f>& room,
+                   const Eigen::Vector3f& up, const Eigen::Vector3f& sensor) {
+  float cell = 0, along0 = 0, height0 = 0;
+  int cols = 0, rows = 0;
+  const auto cellOf = [&](float a, float h) -> long {
+    const auto col = static_cast<int>(std::floor((a - along0) / cell));
+    const auto row = static_cast<int>(std::floor((h - height0) / cell));
+    if (col < 0 || col >= cols || row < 0 || row >= rows) return -1;
+    return static_cast<long>(row) * cols + col;
+  };
+  std::vector<uint8_t> covered;
+  for (const float size : kSeenThroughCells) {
+    cell = size;
+    along0 = wall.along_lo - cell;
+    height0 = wall.height_lo - cell;
+    cols = static_cast<int>((wall.along_hi - along0) / cell) + 2;
+    rows = static_cast<int>((wall.height_hi - height0) / cell) + 2;
+    if (static_cast<long>(cols) * rows > 4'000'000) continue;
+    covered.assign(static_cast<size_t>(cols) * static_cast<size_t>(rows), 0);
+    size_t inside = 0, occupied = 0;
+    for (const auto& q : inliers) {
+      const long c = cellOf(q.x(), q.y());
+      if (c < 0) continue;
+      ++inside;
+      occupied += covered[static_cast<size_t>(c)] == 0;
+      covered[static_cast<size_t>(c)] = 1;
+    }
+    if (static_cast<float>(inside) >= kMinPointsPerCell * static_cast<float>(occupied)) break;
+  }
+  if (covered.empty()) return 0;
+  // The wall's cells, grown by one: a sample leaves single cells of a surface empty.
+  std::fill(covered.begin(), covered.end(), 0);
+  for (const auto& q : inliers) {
+    const long c = cellOf(q.x(), q.y());
+    if (c < 0) continue;
+    const long row = c / cols, col = c % cols;
+    for (long r = std::max(0L, row - 1); r <= std::min<long>(rows - 1, row + 1); ++r) {
+      for (long k = std::max(0L, col - 1); k <= std::min<long>(cols - 1, col + 1); ++k) {
+        covered[static_cast<size_t>(r * cols + k)] = 1;
+      }
+    }
+  }
+  const float towards_sensor = wall.plane.distance(sensor) >= 0 ? 1.0f : -1.0f;
+  size_t seen = 0;
+  for (const auto& p : room) {
+    if (towards_sensor * wall.plane.distance(p) >= -kBehindMargin) continue;
+    const float a = wall.along.dot(p), h = up.dot(p);
+    if (a < wall.along_lo || a > wall.along_hi || h < wall.height_lo || h > wall.height_hi) continue;
+    const long c = cellOf(a, h);
+    seen += c >= 0 && !covered[static_cast<size_t>(c)];
+  }
+  return seen;
+}
+
 // Walls: vertical planes (through two points and up) with most support whose points make a
 // connected surface of a wall's height and width (connectedWall). A large vertical face that is
-// not a wall (a wardrobe is, for the purpose) is set aside and the search goes on.
-std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vector3f& up, const Tolerance& tolerance,
-                            const GravityParams& params) {
+// not a wall (a wardrobe is, for the purpose) is set aside and the search goes on, as is one seen
+// through (seenThrough, where params.wall_max_seen_through is set; `room`: then every point above
+// the floor, which `free` starts as).
+std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const std::vector<Eigen::Vector3f>& room,
+                            const Eigen::Vector3f& up, const Tolerance& tolerance, const GravityParams& params) {
+  const Eigen::Vector3f& sensor = tolerance.sensor;
   std::vector<Wall> walls;
   std::mt19937 rng(params.seed + 1);
   const float max_sin = std::sin(radians(params.wall_tilt_deg));
@@ -419,7 +494,13 @@ std::vector<Wall> findWalls(std::vector<Eigen::Vector3f> free, const Eigen::Vect
       if (d <= params.inlier_distance) inliers.emplace_back(along.dot(p), up.dot(p));
       if (d > tolerance(p)) rest.push_back(p);
     }
-    if (auto wall = connectedWall(plane, along, inliers, params)) walls.push_back(std::move(*wall));
+    auto wall = connectedWall(plane, along, inliers, params);
+    if (wall && params.wall_max_seen_through > 0 &&
+        static_cast<float>(seenThrough(*wall, inliers, room, up, sensor)) >
+            params.wall_max_seen_through * static_cast<float>(inliers.size())) {
+      wall.reset();
+    }
+    if (wall) walls.push_back(std::move(*wall));
     free = std::move(rest);
   }
   return walls;
@@ -459,7 +540,9 @@ GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const 
   for (const auto& p : sample) {
     if (!g.hasFloor() || g.height(p) > tolerance(p)) free.push_back(p);
   }
-  const std::vector<Wall> walls = findWalls(std::move(free), g.up, tolerance, params);
+  std::vector<Eigen::Vector3f> room;
+  if (params.wall_max_seen_through > 0) room = free;
+  const std::vector<Wall> walls = findWalls(std::move(free), room, g.up, tolerance, params);
   g.walls = static_cast<int>(walls.size());
   for (size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3f& p = points[i];

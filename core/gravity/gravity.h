@@ -54,6 +54,13 @@ struct GravityParams {
   // --wall-cell 0.15): it gave tum_desk's desk and chairs twice their keypoints and confidence, but
   // lost 3-6 points of the dev clouds' mAP (docs/EVALUATION.md, "Walls as connected surfaces").
   float wall_cell = 0.0f;
+  // A wall bounds the room and is opaque: a plane with more than this many points (as a fraction
+  // of its own) seen through it - behind it, where its own points leave a gap - is no wall
+  // (gravity.cc, seenThrough). 0: not looked at, every plane of a wall's size is one. Optional
+  // (ism-train --wall-seen-through 1): tum_desk's desk and chairs gained confidence, the dev
+  // clouds lost 0.9 points of mAP over four draws, their sofas most (docs/EVALUATION.md, "Walls the
+  // room is seen through").
+  float wall_max_seen_through = 0.0f;
   int max_walls = 6;
   int iterations = 300;          // RANSAC hypotheses per plane
   int prior_iterations = 64;     // and planes square to the sensor's up when up is not given

@@ -69,6 +69,7 @@ void toProto(const GravityParams& g, v1::GravityParams* out) {
   out->set_sample_points(static_cast<uint32_t>(g.sample_points));
   out->set_seed(g.seed);
   out->set_wall_cell(g.wall_cell);
+  out->set_wall_max_seen_through(g.wall_max_seen_through);
 }
 
 void toProto(const ActivationParams& a, v1::ActivationParams* out) {
@@ -215,7 +216,9 @@ class Reader {
     g.sample_points = in.sample_points();
     g.seed = in.seed();
     g.wall_cell = in.wall_cell();
-    const bool valid = g.wall_cell >= 0 && g.wall_cell <= 10 && g.max_tilt_deg >= 0 && g.max_tilt_deg <= 90 && g.given_up_tolerance_deg >= 0 &&
+    g.wall_max_seen_through = in.wall_max_seen_through();
+    const bool valid = g.wall_cell >= 0 && g.wall_cell <= 10 && g.wall_max_seen_through >= 0 &&
+                       g.wall_max_seen_through <= 1000 && g.max_tilt_deg >= 0 && g.max_tilt_deg <= 90 && g.given_up_tolerance_deg >= 0 &&
                        g.given_up_tolerance_deg <= 90 && g.inlier_distance > 0 && std::isfinite(g.inlier_distance) &&
                        g.noise_sigmas >= 0 && g.min_floor_fraction >= 0 && g.min_floor_fraction <= 1 &&
                        g.max_below_fraction >= 0 && g.max_below_fraction <= 1 && g.below_margin >= 0 &&

@@ -202,6 +202,63 @@ TEST(Gravity, WithWallCellsASparselySampledWallIsStillAWall) {
   EXPECT_GT(labelled, wall * 95 / 100);
 }
 
+// A floor and, 3 m from a camera at 1.5 m, a wall 6 m wide and 2.5 m high, at 3 cm as a dense
+// frame shows them.
+std::vector<Eigen::Vector3f> floorAndWall() {
+  std::vector<Eigen::Vector3f> points;
+  addFace(points, {-3, -4, 0}, {6, 0, 0}, {0, 7, 0}, 0.03f);
+  addFace(points, {-3, 3, 0}, {6, 0, 0}, {0, 0, 2.5f}, 0.03f);
+  return points;
+}
+
+size_t labelledWall(const GravityResult& r, size_t from, size_t to) {
+  size_t n = 0;
+  for (size_t i = from; i < to; ++i) n += r.labels[i] == PlaneLabel::kWall;
+  return n;
+}
+
+TEST(Gravity, APlaneTheRoomIsSeenThroughIsNoWall) {
+  // Five boards 10 cm wide and 1.1 m high stand in line 0.6 m apart, as a desk's legs and front,
+  // chairs' backs and a cabinet's side do in tum_desk: together they span a wall's width and
+  // height on one vertical plane, and the wall behind shows between them.
+  std::vector<Eigen::Vector3f> points = floorAndWall();
+  const size_t before_boards = points.size();
+  for (float x : {-1.2f, -0.6f, 0.0f, 0.6f, 1.2f}) addFace(points, {x - 0.05f, 0.5f, 0.05f}, {0.1f, 0, 0}, {0, 0, 1.1f}, 0.03f);
+  const Eigen::Vector3f camera(0, -3, 1.5f);
+  GravityParams params;
+  params.wall_max_seen_through = 1.0f;
+  const GravityResult r = estimateGravity(points, camera, Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ(), params);
+  EXPECT_EQ(r.gravity.walls, 1);
+  EXPECT_EQ(labelledWall(r, before_boards, points.size()), 0u);
+  size_t wall = 0;
+  for (size_t i = 0; i < before_boards; ++i) wall += points[i].y() > 2.9f && points[i].z() > 0.3f;
+  EXPECT_GT(labelledWall(r, 0, before_boards), wall * 95 / 100);
+  // Without the limit (the default), the boards' plane is a wall too.
+  const GravityResult planes = estimateGravity(points, camera, Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ());
+  EXPECT_EQ(planes.gravity.walls, 2);
+  EXPECT_GT(labelledWall(planes, before_boards, points.size()), (points.size() - before_boards) / 2);
+}
+
+TEST(Gravity, AWallWithADoorwayIsStillAWall) {
+  // The room behind a doorway 1 m wide and 2 m high is seen through the wall, and the wall stays
+  // one: far fewer points are seen through it than it has. The camera looks at it from the side,
+  // a map's viewpoint in the middle of the room would too.
+  std::vector<Eigen::Vector3f> points;
+  addFace(points, {-3, -4, 0}, {6, 0, 0}, {0, 9, 0}, 0.03f);
+  const size_t before_wall = points.size();
+  addFace(points, {-3, 3, 0}, {2.5f, 0, 0}, {0, 0, 2.5f}, 0.03f);
+  addFace(points, {0.5f, 3, 0}, {2.5f, 0, 0}, {0, 0, 2.5f}, 0.03f);
+  addFace(points, {-0.5f, 3, 2.0f}, {1.0f, 0, 0}, {0, 0, 0.5f}, 0.03f);
+  const size_t wall_end = points.size();
+  addFace(points, {-1.5f, 5, 0}, {3.0f, 0, 0}, {0, 0, 2.5f}, 0.03f);  // the next room's wall, seen through the door
+  GravityParams params;
+  params.wall_max_seen_through = 1.0f;
+  const GravityResult r =
+      estimateGravity(points, Eigen::Vector3f(1.0f, -2, 1.5f), Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ(), params);
+  ASSERT_GE(r.gravity.walls, 1);
+  EXPECT_GT(labelledWall(r, before_wall, wall_end), (wall_end - before_wall) * 9 / 10);
+}
+
 TEST(Gravity, TheHandLevelledFloorOfARealKinectFrame) {
   const std::string dir = std::string(ISM_SHARED_DATA_DIR) + "/real/kinect/";
   if (!std::filesystem::exists(dir + "tum_desk.json")) GTEST_SKIP() << "shared data not present: " << dir;

@@ -274,14 +274,16 @@ Model modelWithOneCategory() {
   return model;
 }
 
-TEST(ModelFile, TheWallCellRoundTripsAndOldFilesHaveNone) {
-  Model model = modelWithOneCategory();
-  EXPECT_EQ(model.front_end.gravity.wall_cell, 0.0f) << "off unless trained with it";
-  model.front_end.gravity.wall_cell = 0.15f;
-  EXPECT_EQ(parseModel(serializeModel(model), "new.ismm").front_end.gravity.wall_cell, 0.15f);
-  model.front_end.gravity.wall_cell = -0.15f;
-  expectError([&] { parseModel(serializeModel(model), "broken.ismm"); }, ErrorCode::kCorruptModel,
-              "front-end gravity parameters are out of range");
+TEST(ModelFile, TheWallOptionsRoundTripAndOldFilesHaveNone) {
+  for (float GravityParams::*field : {&GravityParams::wall_cell, &GravityParams::wall_max_seen_through}) {
+    Model model = modelWithOneCategory();
+    EXPECT_EQ(model.front_end.gravity.*field, 0.0f) << "off unless trained with it";
+    model.front_end.gravity.*field = 0.15f;
+    EXPECT_EQ(parseModel(serializeModel(model), "new.ismm").front_end.gravity.*field, 0.15f);
+    model.front_end.gravity.*field = -0.15f;
+    expectError([&] { parseModel(serializeModel(model), "broken.ismm"); }, ErrorCode::kCorruptModel,
+                "front-end gravity parameters are out of range");
+  }
 }
 
 TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
