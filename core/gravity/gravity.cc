@@ -207,31 +207,91 @@ struct Tolerance {
   }
 };
 
-// A wall: the extent of its points on its plane along the floor and up, and where it is a
-// connected surface (GravityParams::wall_cell), the cells (wall_cell square) of the pieces of it
-// that make it a wall, grown by one cell all round.
-struct Wall {
-  Plane plane;
-  Eigen::Vector3f along;  // horizontal, in the plane
-  float along_lo = 0, along_hi = 0, height_lo = 0, height_hi = 0;
+// Square cells over a plane, along the floor and up, with one cell of margin round the extent
+// they are laid over: where a wall's points lie on it, and which of them make a surface.
+struct CellGrid {
   float along0 = 0, height0 = 0, cell = 0;
   int cols = 0, rows = 0;
-  std::vector<uint8_t> cells;  // rows x cols, row-major; empty: the whole extent
-  bool holds(const Eigen::Vector3f& p, const Eigen::Vector3f& up) const {
-    constexpr float kMargin = 0.1f;  // a wall's points a little beyond its sampled extent
-    const float a = along.dot(p), h = up.dot(p);
-    if (a < along_lo - kMargin || a > along_hi + kMargin || h < height_lo - kMargin || h > height_hi + kMargin) return false;
-    if (cells.empty()) return true;
-    const auto col = static_cast<int>(std::floor((a - along0) / cell));
-    const auto row = static_cast<int>(std::floor((h - height0) / cell));
-    return col >= 0 && col < cols && row >= 0 && row < rows && cells[static_cast<size_t>(row * cols + col)] != 0;
+  // Nothing where there would be absurdly many cells (no room is 300 m long).
+  static std::optional<CellGrid> around(const Eigen::Vector2f& lo, const Eigen::Vector2f& hi, float cell) {
+    CellGrid g;
+    g.cell = cell;
+    g.along0 = lo.x() - cell;
+    g.height0 = lo.y() - cell;
+    g.cols = static_cast<int>((hi.x() - g.along0) / cell) + 2;
+    g.rows = static_cast<int>((hi.y() - g.height0) / cell) + 2;
+    if (static_cast<long>(g.cols) * g.rows > 4'000'000) return std::nullopt;
+    return g;
+  }
+  size_t size() const { return static_cast<size_t>(cols) * static_cast<size_t>(rows); }
+  // The cell of a point (along, height), -1 off the grid.
+  int index(const Eigen::Vector2f& q) const {
+    const auto col = static_cast<int>(std::floor((q.x() - along0) / cell));
+    const auto row = static_cast<int>(std::floor((q.y() - height0) / cell));
+    return col >= 0 && col < cols && row >= 0 && row < rows ? row * cols + col : -1;
+  }
+  // f(d) for the cell c and its 8 neighbours on the grid.
+  template <typename F>
+  void forNeighbours(int c, const F& f) const {
+    const int row = c / cols, col = c % cols;
+    for (int r = std::max(0, row - 1); r <= std::min(rows - 1, row + 1); ++r) {
+      for (int k = std::max(0, col - 1); k <= std::min(cols - 1, col + 1); ++k) f(r * cols + k);
+    }
+  }
+  // `cells` grown by one cell all round.
+  std::vector<uint8_t> grown(const std::vector<uint8_t>& cells) const {
+    std::vector<uint8_t> out(cells.size(), 0);
+    for (size_t c = 0; c < cells.size(); ++c) {
+      if (cells[c]) forNeighbours(static_cast<int>(c), [&](int d) { out[static_cast<size_t>(d)] = 1; });
+    }
+    return out;
   }
 };
 
 // Too few points per occupied cell (fewer than this on average) and a plane's points cannot show
 // whether they make a surface or lines: a 50,000-point sample of a fused apartment holds 35
-// points per square metre of wall, 1-2 per cell. Such a wall is the extent of all its points.
+// points per square metre of wall, 1-2 per cell at 15 cm.
 constexpr float kMinPointsPerCell = 4.0f;
+
+// The cells of `grid` that hold any of `points` (each: along, height), and whether those on the
+// grid are dense enough to show a surface (kMinPointsPerCell).
+struct Occupancy {
+  std::vector<uint8_t> cells;
+  bool dense = false;
+};
+Occupancy occupancy(const CellGrid& grid, const std::vector<Eigen::Vector2f>& points) {
+  Occupancy o;
+  o.cells.assign(grid.size(), 0);
+  size_t inside = 0, occupied = 0;
+  for (const auto& q : points) {
+    const int c = grid.index(q);
+    if (c < 0) continue;
+    ++inside;
+    occupied += o.cells[static_cast<size_t>(c)] == 0;
+    o.cells[static_cast<size_t>(c)] = 1;
+  }
+  o.dense = !(static_cast<float>(inside) < kMinPointsPerCell * static_cast<float>(occupied));
+  return o;
+}
+
+// A wall: the extent of its points on its plane along the floor and up, and where it is a
+// connected surface (GravityParams::wall_cell), the cells of the pieces of it that make it a
+// wall, grown by one cell all round.
+struct Wall {
+  Plane plane;
+  Eigen::Vector3f along;  // horizontal, in the plane
+  float along_lo = 0, along_hi = 0, height_lo = 0, height_hi = 0;
+  CellGrid grid;
+  std::vector<uint8_t> cells;  // on `grid`; empty: the whole extent
+  bool holds(const Eigen::Vector3f& p, const Eigen::Vector3f& up) const {
+    constexpr float kMargin = 0.1f;  // a wall's points a little beyond its sampled extent
+    const float a = along.dot(p), h = up.dot(p);
+    if (a < along_lo - kMargin || a > along_hi + kMargin || h < height_lo - kMargin || h > height_hi + kMargin) return false;
+    if (cells.empty()) return true;
+    const int c = grid.index({a, h});
+    return c >= 0 && cells[static_cast<size_t>(c)] != 0;
+  }
+};
 
 // The wall of the points `inliers` (each: along, height) on `plane`: their extent (2nd to 98th
 // percentile), if it spans a wall's height and width.
@@ -270,54 +330,27 @@ std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& alo
                                   const std::vector<Eigen::Vector2f>& inliers, const GravityParams& params) {
   if (inliers.empty()) return std::nullopt;
   if (!(params.wall_cell > 0)) return extentWall(plane, along, inliers, params);
-  Wall wall;
-  wall.plane = plane;
-  wall.along = along;
-  wall.cell = params.wall_cell;
   Eigen::Vector2f lo = inliers[0], hi = inliers[0];
   for (const auto& q : inliers) {
     lo = lo.cwiseMin(q);
     hi = hi.cwiseMax(q);
   }
-  // One cell of margin all round, for growing the pieces into it.
-  wall.along0 = lo.x() - wall.cell;
-  wall.height0 = lo.y() - wall.cell;
-  wall.cols = static_cast<int>((hi.x() - wall.along0) / wall.cell) + 2;
-  wall.rows = static_cast<int>((hi.y() - wall.height0) / wall.cell) + 2;
-  if (static_cast<long>(wall.cols) * wall.rows > 4'000'000) return std::nullopt;  // no room is 300 m long
-  const auto cellOf = [&](const Eigen::Vector2f& q) {
-    return static_cast<int>((q.y() - wall.height0) / wall.cell) * wall.cols + static_cast<int>((q.x() - wall.along0) / wall.cell);
-  };
-  const size_t n = static_cast<size_t>(wall.cols) * static_cast<size_t>(wall.rows);
-  std::vector<uint8_t> occupied(n, 0);
-  size_t occupied_cells = 0;
-  for (const auto& q : inliers) {
-    uint8_t& o = occupied[static_cast<size_t>(cellOf(q))];
-    occupied_cells += o == 0;
-    o = 1;
-  }
-  if (static_cast<float>(inliers.size()) < kMinPointsPerCell * static_cast<float>(occupied_cells)) {
-    return extentWall(plane, along, inliers, params);
-  }
+  const std::optional<CellGrid> grid = CellGrid::around(lo, hi, params.wall_cell);
+  if (!grid) return std::nullopt;
+  const Occupancy occupied = occupancy(*grid, inliers);
+  if (!occupied.dense) return extentWall(plane, along, inliers, params);
   // The occupied cells opened (eroded, then dilated, by a 3 x 3 block): what is left is surface.
   // A plane through a room also cuts other surfaces along lines - a table top's edge, a seat -
   // and those lines join up through cells as a surface does, but hold no 3 x 3 block of them.
-  const auto forNeighbours = [&](int c, const auto& f) {
-    const int row = c / wall.cols, col = c % wall.cols;
-    for (int dr = -1; dr <= 1; ++dr) {
-      for (int dc = -1; dc <= 1; ++dc) {
-        const int r = row + dr, k = col + dc;
-        if (r >= 0 && r < wall.rows && k >= 0 && k < wall.cols) f(r * wall.cols + k);
-      }
-    }
-  };
-  std::vector<uint8_t> opened(n, 0);
+  const size_t n = grid->size();
+  std::vector<uint8_t> eroded(n, 0);
   for (size_t c = 0; c < n; ++c) {
-    if (!occupied[c]) continue;
+    if (!occupied.cells[c]) continue;
     int around = 0;
-    forNeighbours(static_cast<int>(c), [&](int d) { around += occupied[static_cast<size_t>(d)]; });
-    if (around == 9) forNeighbours(static_cast<int>(c), [&](int d) { opened[static_cast<size_t>(d)] = 1; });
+    grid->forNeighbours(static_cast<int>(c), [&](int d) { around += occupied.cells[static_cast<size_t>(d)]; });
+    eroded[c] = around == 9;
   }
+  const std::vector<uint8_t> opened = grid->grown(eroded);
   std::vector<int> piece(n, -2);  // -2 not surface, -1 not yet joined to a piece
   for (size_t c = 0; c < n; ++c) {
     if (opened[c]) piece[c] = -1;
@@ -337,7 +370,7 @@ std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& alo
     while (!stack.empty()) {
       const int c = stack.back();
       stack.pop_back();
-      forNeighbours(c, [&](int d) {
+      grid->forNeighbours(c, [&](int d) {
         int& next = piece[static_cast<size_t>(d)];
         if (next != -1) return;
         next = id;
@@ -347,7 +380,7 @@ std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& alo
   }
   if (extents.empty()) return std::nullopt;
   for (const auto& q : inliers) {
-    const int id = piece[static_cast<size_t>(cellOf(q))];
+    const int id = piece[static_cast<size_t>(grid->index(q))];
     if (id < 0) continue;
     Extent& e = extents[static_cast<size_t>(id)];
     e.lo = e.lo.cwiseMin(q);
@@ -358,6 +391,10 @@ std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& alo
                                         [](const Extent& a, const Extent& b) { return a.points < b.points; });
   const Eigen::Vector2f span = largest->hi - largest->lo;
   if (span.y() < params.wall_min_height || span.x() < params.wall_min_width) return std::nullopt;
+  Wall wall;
+  wall.plane = plane;
+  wall.along = along;
+  wall.grid = *grid;
   std::vector<uint8_t> kept(extents.size(), 0);
   wall.along_lo = wall.height_lo = INFINITY;
   wall.along_hi = wall.height_hi = -INFINITY;
@@ -365,17 +402,14 @@ std::optional<Wall> connectedWall(const Plane& plane, const Eigen::Vector3f& alo
     kept[i] = &extents[i] == &*largest || extents[i].hi.y() - extents[i].lo.y() >= params.wall_min_height;
     if (!kept[i]) continue;
     // As far as the cells grown from its pieces reach: the cells decide.
-    wall.along_lo = std::min(wall.along_lo, extents[i].lo.x() - 2 * wall.cell);
-    wall.along_hi = std::max(wall.along_hi, extents[i].hi.x() + 2 * wall.cell);
-    wall.height_lo = std::min(wall.height_lo, extents[i].lo.y() - 2 * wall.cell);
-    wall.height_hi = std::max(wall.height_hi, extents[i].hi.y() + 2 * wall.cell);
+    wall.along_lo = std::min(wall.along_lo, extents[i].lo.x() - 2 * grid->cell);
+    wall.along_hi = std::max(wall.along_hi, extents[i].hi.x() + 2 * grid->cell);
+    wall.height_lo = std::min(wall.height_lo, extents[i].lo.y() - 2 * grid->cell);
+    wall.height_hi = std::max(wall.height_hi, extents[i].hi.y() + 2 * grid->cell);
   }
-  wall.cells.assign(n, 0);
-  for (size_t c = 0; c < n; ++c) {
-    if (piece[c] >= 0 && kept[static_cast<size_t>(piece[c])]) {
-      forNeighbours(static_cast<int>(c), [&](int d) { wall.cells[static_cast<size_t>(d)] = 1; });
-    }
-  }
+  std::vector<uint8_t> in_kept_piece(n, 0);
+  for (size_t c = 0; c < n; ++c) in_kept_piece[c] = piece[c] >= 0 && kept[static_cast<size_t>(piece[c])];
+  wall.cells = grid->grown(in_kept_piece);
   return wall;
 }
 
@@ -399,53 +433,26 @@ constexpr float kSeenThroughCells[] = {0.05f, 0.1f, 0.15f, 0.2f, 0.3f, 0.4f};
 // hypothesis verification, 2012, applied to a plane.)
 size_t seenThrough(const Wall& wall, const std::vector<Eigen::Vector2f>& inliers, const std::vector<Eigen::Vector3f>& room,
                    const Eigen::Vector3f& up, const Eigen::Vector3f& sensor) {
-  float cell = 0, along0 = 0, height0 = 0;
-  int cols = 0, rows = 0;
-  const auto cellOf = [&](float a, float h) -> long {
-    const auto col = static_cast<int>(std::floor((a - along0) / cell));
-    const auto row = static_cast<int>(std::floor((h - height0) / cell));
-    if (col < 0 || col >= cols || row < 0 || row >= rows) return -1;
-    return static_cast<long>(row) * cols + col;
-  };
-  std::vector<uint8_t> covered;
+  const Eigen::Vector2f lo(wall.along_lo, wall.height_lo), hi(wall.along_hi, wall.height_hi);
+  std::optional<CellGrid> grid;
+  Occupancy occupied;
   for (const float size : kSeenThroughCells) {
-    cell = size;
-    along0 = wall.along_lo - cell;
-    height0 = wall.height_lo - cell;
-    cols = static_cast<int>((wall.along_hi - along0) / cell) + 2;
-    rows = static_cast<int>((wall.height_hi - height0) / cell) + 2;
-    if (static_cast<long>(cols) * rows > 4'000'000) continue;
-    covered.assign(static_cast<size_t>(cols) * static_cast<size_t>(rows), 0);
-    size_t inside = 0, occupied = 0;
-    for (const auto& q : inliers) {
-      const long c = cellOf(q.x(), q.y());
-      if (c < 0) continue;
-      ++inside;
-      occupied += covered[static_cast<size_t>(c)] == 0;
-      covered[static_cast<size_t>(c)] = 1;
-    }
-    if (static_cast<float>(inside) >= kMinPointsPerCell * static_cast<float>(occupied)) break;
+    std::optional<CellGrid> sized = CellGrid::around(lo, hi, size);
+    if (!sized) continue;
+    grid = sized;
+    occupied = occupancy(*grid, inliers);
+    if (occupied.dense) break;
   }
-  if (covered.empty()) return 0;
+  if (!grid) return 0;
   // The wall's cells, grown by one: a sample leaves single cells of a surface empty.
-  std::fill(covered.begin(), covered.end(), 0);
-  for (const auto& q : inliers) {
-    const long c = cellOf(q.x(), q.y());
-    if (c < 0) continue;
-    const long row = c / cols, col = c % cols;
-    for (long r = std::max(0L, row - 1); r <= std::min<long>(rows - 1, row + 1); ++r) {
-      for (long k = std::max(0L, col - 1); k <= std::min<long>(cols - 1, col + 1); ++k) {
-        covered[static_cast<size_t>(r * cols + k)] = 1;
-      }
-    }
-  }
+  const std::vector<uint8_t> covered = grid->grown(occupied.cells);
   const float towards_sensor = wall.plane.distance(sensor) >= 0 ? 1.0f : -1.0f;
   size_t seen = 0;
   for (const auto& p : room) {
     if (towards_sensor * wall.plane.distance(p) >= -kBehindMargin) continue;
-    const float a = wall.along.dot(p), h = up.dot(p);
-    if (a < wall.along_lo || a > wall.along_hi || h < wall.height_lo || h > wall.height_hi) continue;
-    const long c = cellOf(a, h);
+    const Eigen::Vector2f q(wall.along.dot(p), up.dot(p));
+    if (q.x() < lo.x() || q.x() > hi.x() || q.y() < lo.y() || q.y() > hi.y()) continue;
+    const int c = grid->index(q);
     seen += c >= 0 && !covered[static_cast<size_t>(c)];
   }
   return seen;
