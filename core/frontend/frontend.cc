@@ -12,6 +12,7 @@
 #include "core/frontend/range_image.h"
 #include "core/frontend/shot.h"
 #include "core/frontend/upright_geometry.h"
+#include "core/gravity/viewpoint.h"
 
 namespace ism {
 
@@ -50,7 +51,14 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     ScopedStage stage(timings, "gravity");
     std::vector<Eigen::Vector3f> positions(points->size());
     for (size_t i = 0; i < points->size(); ++i) positions[i] = (*points)[i].getVector3fMap();
-    GravityResult found = estimateGravity(positions, scene.sensor_origin, sensor_up, scene.up, params.gravity);
+    // What a sensor saw through a plane is only known where there was a sensor: a map's viewpoint
+    // is made up (viewpoint.h), so its planes are not tested for it, as verification checks maps
+    // without free space (VerificationParams::maps_in_3d).
+    GravityParams gravity = params.gravity;
+    if (gravity.wall_max_seen_through > 0 && scene.image_width == 0 && surrounds(*scene.cloud, scene.sensor_origin)) {
+      gravity.wall_max_seen_through = 0;
+    }
+    GravityResult found = estimateGravity(positions, scene.sensor_origin, sensor_up, scene.up, gravity);
     result.gravity = found.gravity;
     planes = std::move(found.labels);
   }

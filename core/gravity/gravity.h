@@ -56,10 +56,11 @@ struct GravityParams {
   float wall_cell = 0.0f;
   // A wall bounds the room and is opaque: a plane with more than this many points (as a fraction
   // of its own) seen through it - behind it, where its own points leave a gap - is no wall
-  // (gravity.cc, seenThrough). 0: not looked at, every plane of a wall's size is one. Optional
-  // (ism-train --wall-seen-through 1): tum_desk's desk and chairs gained confidence, the dev
-  // clouds lost 0.9 points of mAP over four draws, their sofas most (docs/EVALUATION.md, "Walls the
-  // room is seen through").
+  // (gravity.cc, seenThrough). 0: not looked at, every plane of a wall's size is one. Only a
+  // scene with a sensor is tested: a map's viewpoint is made up (frontend.cc). Optional (ism-train
+  // --wall-seen-through 1): tum_desk's desk and chairs gain 2-4x their confidence, but its frame
+  // takes 1.6x as long (the freed planes' keypoints) and the dev clouds lose 0.9 points of mAP
+  // over four draws (docs/EVALUATION.md, "Walls the room is seen through").
   float wall_max_seen_through = 0.0f;
   int max_walls = 6;
   int iterations = 300;          // RANSAC hypotheses per plane

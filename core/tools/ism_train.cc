@@ -81,7 +81,7 @@ int main(int argc, char** argv) {
                  "its extent, the default)")
       ->check(CLI::Range(0.0, 1.0));
   app.add_option("--wall-seen-through", params.front_end.gravity.wall_max_seen_through,
-                 "a plane with more points seen through it than this fraction of its own is no wall (0 = not looked at)")
+                 "a plane with more points seen through it than this fraction of its own is no wall (0 = not looked at; maps are not)")
       ->check(CLI::Range(0.0, 1000.0));
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(ism::cli::nonNegative());
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");

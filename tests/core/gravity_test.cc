@@ -233,8 +233,9 @@ TEST(Gravity, APlaneTheRoomIsSeenThroughIsNoWall) {
   size_t wall = 0;
   for (size_t i = 0; i < before_boards; ++i) wall += points[i].y() > 2.9f && points[i].z() > 0.3f;
   EXPECT_GT(labelledWall(r, 0, before_boards), wall * 95 / 100);
-  // Without the limit (the default), the boards' plane is a wall too.
-  const GravityResult planes = estimateGravity(points, camera, Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ());
+  // Without the limit, the boards' plane is a wall too.
+  params.wall_max_seen_through = 0.0f;
+  const GravityResult planes = estimateGravity(points, camera, Eigen::Vector3f::UnitZ(), Eigen::Vector3f::UnitZ(), params);
   EXPECT_EQ(planes.gravity.walls, 2);
   EXPECT_GT(labelledWall(planes, before_boards, points.size()), (points.size() - before_boards) / 2);
 }
