@@ -425,8 +425,8 @@ constexpr float kSeenThroughCells[] = {0.05f, 0.1f, 0.15f, 0.2f, 0.3f, 0.4f};
 // The points of `room` (the scene above the floor) that lie more than kBehindMargin behind
 // `wall`'s plane as seen from `sensor`, within the wall's extent, where its own points (`inliers`:
 // along, height) leave a gap of more than a cell: what the sensor saw through the plane. A wall is
-// opaque and bounds the room, so a camera (or a map's viewpoint in the middle of the room,
-// viewpoint.h) sees next to nothing through it; a plane that only cuts through furniture - a
+// opaque and bounds the room, so a camera sees next to nothing through it (a map, whose
+// viewpoint is made up, is not tested: frontend.cc); a plane that only cuts through furniture - a
 // chair's back, a desk's front and a cabinet's side in line (tum_desk) - has the rest of the room
 // in view behind it. Points behind the wall where its own points stand do not count: a fused
 // apartment's next room lies behind its walls. (The free-space argument of Aldoma et al.'s
