@@ -27,16 +27,13 @@ void estimateUprightBox(const VoteCaster& caster, float half_edge, Hypothesis& p
     // The heading of the keypoint's frame about up, in the gravity frame.
     const Eigen::Vector3f x = to_gravity * caster.frame(keypoint).row(0).transpose();
     const float frame_heading = std::atan2(x.y(), x.x());
-    caster.forEachActivation(keypoint, [&](float w, uint32_t first, uint32_t last) {
-      for (uint32_t v = first; v < last; ++v) {
-        if (!insideCube(caster.position(keypoint, v), peak.center, half_edge)) continue;
-        const TrainingObject& object = objects[table.objects[v]];
-        const double heading = 2.0 * (frame_heading + table.headings[v]);
-        weight += w;
-        size += w * object.size.cast<double>();
-        cos2 += w * std::cos(heading);
-        sin2 += w * std::sin(heading);
-      }
+    caster.forEachVoteInCube(keypoint, peak.center, half_edge, [&](float w, uint32_t v) {
+      const TrainingObject& object = objects[table.objects[v]];
+      const double heading = 2.0 * (frame_heading + table.headings[v]);
+      weight += w;
+      size += w * object.size.cast<double>();
+      cos2 += w * std::cos(heading);
+      sin2 += w * std::sin(heading);
     });
   }
   if (!(weight > 0)) return;

@@ -1,8 +1,11 @@
 #include "core/frontend/downsample.h"
 
 #include <gtest/gtest.h>
+#include <pcl/common/io.h>
+#include <pcl/filters/voxel_grid.h>
 
 #include <algorithm>
+#include <limits>
 #include <random>
 #include <vector>
 
@@ -77,6 +80,35 @@ TEST(Downsample, ExtentBeyondVoxelIndexRangeIsSplitExactly) {
   Cloud absurd = near_cluster;
   absurd[0].x = 1e8f;
   expectError([&] { downsample(absurd, params); }, ErrorCode::kInvalidInput, "downsample.leaf_size = 0.001");
+}
+
+// The centroids come in pcl::VoxelGrid's order (ascending voxel index) with its values, on a cloud
+// of many voxels and some points without a value.
+TEST(Downsample, MatchesPclVoxelGridInItsOrder) {
+  std::mt19937 rng(11);
+  std::uniform_real_distribution<float> coordinate(-0.5f, 0.7f);
+  Cloud cloud;
+  for (int i = 0; i < 30000; ++i) {
+    PointT p;
+    p.x = coordinate(rng), p.y = coordinate(rng), p.z = coordinate(rng);
+    if (i % 97 == 0) p.y = std::numeric_limits<float>::quiet_NaN();
+    cloud.push_back(p);
+  }
+  DownsampleParams params;
+  params.leaf_size = 0.05f;
+  const auto got = downsample(cloud, params);
+  pcl::PointCloud<pcl::PointXYZ> xyz, expected;
+  pcl::copyPointCloud(cloud, xyz);
+  xyz.is_dense = false;
+  pcl::VoxelGrid<pcl::PointXYZ> grid;
+  grid.setInputCloud(xyz.makeShared());
+  grid.setLeafSize(params.leaf_size, params.leaf_size, params.leaf_size);
+  grid.filter(expected);
+  ASSERT_GT(expected.size(), 10000u);
+  ASSERT_EQ(got->size(), expected.size());
+  for (size_t i = 0; i < expected.size(); ++i) {
+    ASSERT_LT(((*got)[i].getVector3fMap() - expected[i].getVector3fMap()).norm(), 1e-5f) << "centroid " << i;
+  }
 }
 
 }  // namespace

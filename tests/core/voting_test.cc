@@ -3,6 +3,7 @@
 #include <gtest/gtest.h>
 
 #include <numeric>
+#include <random>
 
 #include "core/common/error.h"
 #include "core/recognition/hough_space.h"
@@ -101,6 +102,35 @@ TEST(CastVotes, RejectsActivationsOutsideTheTable) {
   const HandMadeObject o = handMadeObject(Eigen::Vector3f::Zero(), 2);
   const Model m = modelWithVotes(o.votes);
   EXPECT_THROW(castVotes(m, 0, o.features, {{0, 7, 0.0f}}, strategy(VoteWeighting::kCategorization)), Error);
+}
+
+// The votes of a keypoint in a cube, as the upright box reads them: exactly those whose landing
+// place is inside, in order, across the chunks a long codeword is tested in.
+TEST(VoteCaster, VotesInACubeAreThoseLandingInsideAcrossChunks) {
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<float> coordinate(-1.0f, 1.0f);
+  std::vector<std::vector<Eigen::Vector3f>> votes(2);
+  for (int i = 0; i < 3 * static_cast<int>(kChunk) + 17; ++i) {
+    votes[i % 5 == 0 ? 1 : 0].emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+  }
+  const Model m = modelWithVotes(votes);
+  Features f;
+  f.positions = {Eigen::Vector3f(0.3f, -0.2f, 1.0f)};
+  f.lrfs = {Eigen::AngleAxisf(0.7f, Eigen::Vector3f(1, 2, 3).normalized()).toRotationMatrix()};
+  const std::vector<Activation> activations{{0, 0, 0.1f}, {0, 1, 0.2f}};
+  const VoteCaster caster(m, 0, f, activations, strategy(VoteWeighting::kLocalization));
+  const Eigen::Vector3f centre(0.5f, 0.0f, 1.2f);
+  const float half_edge = 0.4f;
+  std::vector<std::pair<float, uint32_t>> expected, got;
+  caster.forEachActivation(0, [&](float w, uint32_t first, uint32_t last) {
+    for (uint32_t v = first; v < last; ++v) {
+      if (insideCube(caster.position(0, v), centre, half_edge)) expected.emplace_back(w, v);
+    }
+  });
+  caster.forEachVoteInCube(0, centre, half_edge, [&](float w, uint32_t v) { got.emplace_back(w, v); });
+  ASSERT_GT(expected.size(), 20u);
+  ASSERT_LT(expected.size(), votes[0].size() / 2);
+  EXPECT_EQ(got, expected);
 }
 
 }  // namespace
