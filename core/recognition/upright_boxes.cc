@@ -22,12 +22,13 @@ void estimateUprightBox(const VoteCaster& caster, float half_edge, Hypothesis& p
   double weight = 0;
   Eigen::Vector3d size = Eigen::Vector3d::Zero();
   double cos2 = 0, sin2 = 0;
+  VoteChunk chunk;
   for (int k : peak.support_indices) {
     const auto keypoint = static_cast<size_t>(k);
     // The heading of the keypoint's frame about up, in the gravity frame.
     const Eigen::Vector3f x = to_gravity * caster.frame(keypoint).row(0).transpose();
     const float frame_heading = std::atan2(x.y(), x.x());
-    caster.forEachVoteInCube(keypoint, peak.center, half_edge, [&](float w, uint32_t v) {
+    caster.forEachVoteInCube(keypoint, peak.center, half_edge, chunk, [&](float w, uint32_t v) {
       const TrainingObject& object = objects[table.objects[v]];
       const double heading = 2.0 * (frame_heading + table.headings[v]);
       weight += w;

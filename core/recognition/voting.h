@@ -4,7 +4,6 @@
 // The VoteCaster produces them in chunks for the Hough space (hough_space.h), which never
 // stores them; castVotes() materialises them for debug output and the leave-one-out scores.
 #include <algorithm>
-#include <cmath>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -53,6 +52,7 @@ constexpr uint32_t kChunk = 256;
 
 struct VoteChunk {
   uint32_t size = 0;
+  uint32_t first = 0;  // the vote table's row of position 0
   float weight = 0;
   alignas(16) float x[kChunk], y[kChunk], z[kChunk];
   Eigen::Vector3f position(uint32_t j) const { return {x[j], y[j], z[j]}; }
@@ -113,6 +113,7 @@ class VoteCaster {
       chunk.weight = weight;
       for (uint32_t start = first; start < last; start += kChunk) {
         chunk.size = std::min(kChunk, last - start);
+        chunk.first = start;
         const float *vx = vx_.get() + start, *vy = vy_.get() + start, *vz = vz_.get() + start;
         // One coordinate per loop: four coefficients, which stay in registers.
         for (uint32_t j = 0; j < chunk.size; ++j) chunk.x[j] = cast(o.x(), r(0, 0), r(1, 0), r(2, 0), vx[j], vy[j], vz[j]);
@@ -124,26 +125,15 @@ class VoteCaster {
   }
 
   // Calls f(weight, v) for each vote v (a row of table_) of keypoint k that lands in the cube of
-  // insideCube(center, half_edge), in forEachActivation's order. The cube is tested on a chunk's
-  // positions at once (as vector instructions) before f sees the few inside.
+  // insideCube(center, half_edge), in forEachChunk's order: a chunk's positions are tested without
+  // a branch before f sees the few inside. `chunk` is the caller's buffer.
   template <typename F>
-  void forEachVoteInCube(size_t k, const Eigen::Vector3f& center, float half_edge, F&& f) const {
-    const Eigen::Matrix3f& r = frames_[k];
-    const Eigen::Vector3f& o = features_.positions[k];
-    forEachActivation(k, [&](float weight, uint32_t first, uint32_t last) {
-      for (uint32_t start = first; start < last; start += kChunk) {
-        const uint32_t size = std::min(kChunk, last - start);
-        const float *vx = vx_.get() + start, *vy = vy_.get() + start, *vz = vz_.get() + start;
-        alignas(16) uint8_t inside[kChunk];
-        for (uint32_t j = 0; j < size; ++j) {
-          const float dx = std::abs(cast(o.x(), r(0, 0), r(1, 0), r(2, 0), vx[j], vy[j], vz[j]) - center.x());
-          const float dy = std::abs(cast(o.y(), r(0, 1), r(1, 1), r(2, 1), vx[j], vy[j], vz[j]) - center.y());
-          const float dz = std::abs(cast(o.z(), r(0, 2), r(1, 2), r(2, 2), vx[j], vy[j], vz[j]) - center.z());
-          inside[j] = static_cast<uint8_t>((dx <= half_edge) & (dy <= half_edge) & (dz <= half_edge));
-        }
-        for (uint32_t j = 0; j < size; ++j) {
-          if (inside[j]) f(weight, start + j);
-        }
+  void forEachVoteInCube(size_t k, const Eigen::Vector3f& center, float half_edge, VoteChunk& chunk, F&& f) const {
+    forEachChunk(k, chunk, [&](const VoteChunk& votes) {
+      alignas(16) uint8_t inside[kChunk];
+      for (uint32_t j = 0; j < votes.size; ++j) inside[j] = insideCube(votes.position(j), center, half_edge);
+      for (uint32_t j = 0; j < votes.size; ++j) {
+        if (inside[j]) f(votes.weight, votes.first + j);
       }
     });
   }

@@ -127,7 +127,8 @@ TEST(VoteCaster, VotesInACubeAreThoseLandingInsideAcrossChunks) {
       if (insideCube(caster.position(0, v), centre, half_edge)) expected.emplace_back(w, v);
     }
   });
-  caster.forEachVoteInCube(0, centre, half_edge, [&](float w, uint32_t v) { got.emplace_back(w, v); });
+  VoteChunk chunk;
+  caster.forEachVoteInCube(0, centre, half_edge, chunk, [&](float w, uint32_t v) { got.emplace_back(w, v); });
   ASSERT_GT(expected.size(), 20u);
   ASSERT_LT(expected.size(), votes[0].size() / 2);
   EXPECT_EQ(got, expected);
