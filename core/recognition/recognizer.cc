@@ -306,14 +306,17 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       for (size_t g : sorted_group) sorted.push_back(std::move(peakIn(g)));  // each peak is in one group
       if (view) verifyHypotheses(*view, own_model, sorted, options.verification, options.should_stop);
       const CategoryModel& own_category = own_model.categories[static_cast<size_t>(plan.categories[s])];
-      const SceneChecks checks(own_model, own_category, options.scene_checks);
+      // What the checks need from the training shapes is worked out only for a category with
+      // answers to check: most frames have none for most categories.
+      std::optional<SceneChecks> checks;
       for (size_t i = 0; i < sorted.size(); ++i) {
         Hypothesis& h = sorted[i];
         if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
         if (view) {
           h.confidence = members[m].plan.confidence[s](h);
           if (h.confidence < own_lowest) continue;
-          const SceneVerdict verdict = checks(*view, h, to_gravity);
+          if (!checks) checks.emplace(own_model, own_category, options.scene_checks);
+          const SceneVerdict verdict = (*checks)(*view, h, to_gravity);
           if (verdict == SceneVerdict::kRejected) {
             h.passed_selection = false;
             if (m == 0) result.rejected.push_back(std::move(h));

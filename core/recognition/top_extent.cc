@@ -15,10 +15,12 @@ namespace {
 
 constexpr float kBin = 0.02f;  // the top's height is sought in layers this thick (m)
 
-// A square grid of cells over the gravity frame's x and y, flags per cell.
+// A square grid of cells over the gravity frame's x and y, flags per cell. Its window holds every
+// set cell; morphology looks only there.
 class Grid {
  public:
-  Grid(Eigen::Vector2f min, float cell, int n) : min_(min), cell_(cell), n_(n), flags_(static_cast<size_t>(n) * static_cast<size_t>(n), 0) {}
+  Grid(Eigen::Vector2f min, float cell, int n)
+      : min_(min), cell_(cell), n_(n), lo_(0, 0), hi_(n - 1, n - 1), flags_(static_cast<size_t>(n) * static_cast<size_t>(n), 0) {}
   bool cellOf(const Eigen::Vector2f& p, int& x, int& y) const {
     const Eigen::Vector2f f = (p - min_) / cell_;
     if (!(f.x() >= 0 && f.y() >= 0)) return false;
@@ -30,6 +32,28 @@ class Grid {
   }
   bool at(int x, int y) const { return x >= 0 && y >= 0 && x < n_ && y < n_ && flags_[index(x, y)] != 0; }
   void set(int x, int y, bool v = true) { flags_[index(x, y)] = v ? 1 : 0; }
+  // The window: the set cells' bounding rectangle grown by `margin` cells, within the grid. A
+  // closing sets no cell outside the rectangle (the erosion clears each cell the dilation added
+  // there, as its neighbours farther out stay clear), and the opening's dilation reaches one cell
+  // past it, so the top's morphology needs a margin of 1. Empty (lo > hi) when no cell is set.
+  void fitWindow(int margin) {
+    Eigen::Vector2i lo(n_, n_), hi(-1, -1);
+    for (int y = 0; y < n_; ++y) {
+      for (int x = 0; x < n_; ++x) {
+        if (flags_[index(x, y)] == 0) continue;
+        lo = lo.cwiseMin(Eigen::Vector2i(x, y));
+        hi = hi.cwiseMax(Eigen::Vector2i(x, y));
+      }
+    }
+    if (hi.x() < 0) {
+      lo_ = {0, 0}, hi_ = {-1, -1};
+      return;
+    }
+    lo_ = (lo.array() - margin).max(0).matrix();
+    hi_ = (hi.array() + margin).min(n_ - 1).matrix();
+  }
+  const Eigen::Vector2i& lo() const { return lo_; }
+  const Eigen::Vector2i& hi() const { return hi_; }
 
   // Morphology with the 3 x 3 square; outside the grid is empty.
   Grid dilated() const { return morph(false); }
@@ -44,8 +68,9 @@ class Grid {
   size_t index(int x, int y) const { return static_cast<size_t>(y) * static_cast<size_t>(n_) + static_cast<size_t>(x); }
   Grid morph(bool all) const {
     Grid out(min_, cell_, n_);
-    for (int y = 0; y < n_; ++y) {
-      for (int x = 0; x < n_; ++x) {
+    out.lo_ = lo_, out.hi_ = hi_;
+    for (int y = lo_.y(); y <= hi_.y(); ++y) {
+      for (int x = lo_.x(); x <= hi_.x(); ++x) {
         bool v = all;
         for (int dy = -1; dy <= 1 && v == all; ++dy) {
           for (int dx = -1; dx <= 1 && v == all; ++dx) {
@@ -60,6 +85,7 @@ class Grid {
   Eigen::Vector2f min_;
   float cell_;
   int n_;
+  Eigen::Vector2i lo_, hi_;  // the window, corners included
   std::vector<uint8_t> flags_;
 };
 
@@ -145,14 +171,15 @@ TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, con
   }
   // Closed over a sample's holes, then opened: a part one or two cells thin at this height (a
   // backrest, a wall, a monitor's foot) does not join the top to what stands beside it.
+  measured.fitWindow(1);
   const Grid closed = measured.dilated().eroded();
   const Grid opened = closed.eroded().dilated() & closed;
 
   // Grown from the cells within the fitted footprint.
   Grid reached(centre.head<2>() - Eigen::Vector2f::Constant(half), params.cell, n);
   std::vector<std::pair<int, int>> frontier;
-  for (int y = 0; y < n; ++y) {
-    for (int x = 0; x < n; ++x) {
+  for (int y = opened.lo().y(); y <= opened.hi().y(); ++y) {  // no cell outside the window is set
+    for (int x = opened.lo().x(); x <= opened.hi().x(); ++x) {
       const Eigen::Vector2f at = opened.centre(x, y);
       if (opened.at(x, y) && in_footprint({at.x(), at.y(), top})) {
         reached.set(x, y);

@@ -220,10 +220,20 @@ struct ShapeBuffer {
   explicit ShapeBuffer(size_t size) : pixels(size) {}
 };
 
+// The shape's first n points turned by `pose`'s heading into the view's axes: what poses that
+// differ only in their shift along the floor share.
+void turnIntoView(const LocalView& view, const std::vector<Eigen::Vector3f>& shape, int n, const Pose& pose,
+                  std::vector<Eigen::Vector3f>& turned) {
+  const Eigen::Matrix3f to_view = view.axes * headingOf(pose);
+  turned.resize(static_cast<size_t>(n));
+  for (int i = 0; i < n; ++i) turned[static_cast<size_t>(i)] = to_view * shape[static_cast<size_t>(i)];
+}
+
 // The front-most of the shape's first n points at least min_height above the floor, per pixel of
-// the view: buffer.touched lists the pixels set.
+// the view: buffer.touched lists the pixels set. `turned`, when given, holds the points turned
+// into the view (turnIntoView) for the pose's heading.
 void fillShapeBuffer(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int n, const Pose& pose,
-                     float min_height, ShapeBuffer& buffer) {
+                     float min_height, ShapeBuffer& buffer, const std::vector<Eigen::Vector3f>* turned = nullptr) {
   buffer.touched.clear();
   // The pose and the view in one affine map: the shape's points go straight into the view's axes.
   const Eigen::Matrix3f to_view = sv.view.axes * headingOf(pose);
@@ -231,7 +241,10 @@ void fillShapeBuffer(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sh
   for (int i = 0; i < n; ++i) {
     if (shape[static_cast<size_t>(i)].z() < min_height) continue;
     float z = 0;
-    const int pixel = sv.view.project(to_view * shape[static_cast<size_t>(i)] + view_offset, z);
+    const Eigen::Vector3f in_view =
+        turned != nullptr ? Eigen::Vector3f((*turned)[static_cast<size_t>(i)] + view_offset)
+                          : Eigen::Vector3f(to_view * shape[static_cast<size_t>(i)] + view_offset);
+    const int pixel = sv.view.project(in_view, z);
     if (pixel < 0) continue;
     ShapeBuffer::Pixel& nearest = buffer.pixels[static_cast<size_t>(pixel)];
     if (nearest.index < 0) {
@@ -248,9 +261,10 @@ void fillShapeBuffer(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sh
 // two overlapping hypotheses do not both take credit for one surface. With `explained`, the cells
 // of the agreeing points are added to it.
 Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape, int points, const Pose& pose,
-                    ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr) {
+                    ShapeBuffer& buffer, std::unordered_set<uint64_t>* explained = nullptr,
+                    const std::vector<Eigen::Vector3f>* turned = nullptr) {
   const int n = std::min<int>(points, static_cast<int>(shape.size()));
-  fillShapeBuffer(sv, shape, n, pose, -std::numeric_limits<float>::infinity(), buffer);
+  fillShapeBuffer(sv, shape, n, pose, -std::numeric_limits<float>::infinity(), buffer, turned);
   const Eigen::Matrix3f turn = headingOf(pose);
   const Eigen::Vector3f offset(pose.xy.x(), pose.xy.y(), sv.floor_z);
   // The measured surface's cell is wanted only to check or record what a hypothesis explains.
@@ -287,12 +301,14 @@ Agreement agreement(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sha
   return a;
 }
 
-// A pose's agreement: in 3D for a map, else on the depth buffer of sv.view.
+// A pose's agreement: in 3D for a map, else on the depth buffer of sv.view (`turned` as
+// fillShapeBuffer's).
 Agreement poseAgreement(const VerificationScene& scene, const ShapeView& sv, const std::vector<Eigen::Vector3f>& shape,
                         int points, const Pose& pose, ShapeBuffer& buffer,
-                        std::unordered_set<uint64_t>* explained = nullptr) {
+                        std::unordered_set<uint64_t>* explained = nullptr,
+                        const std::vector<Eigen::Vector3f>* turned = nullptr) {
   return (scene.map ? agreementInMap(scene, sv.floor_z, sv.claimed, shape, points, pose, explained)
-                    : agreement(sv, shape, points, pose, buffer, explained))
+                    : agreement(sv, shape, points, pose, buffer, explained, turned))
       .weighed(sv.terms);
 }
 
@@ -395,11 +411,20 @@ float profileDistance(const ShapeProfile& a, const ShapeProfile& b) {
 
 namespace {
 
+// The profiles of the category's training shapes, each in its own box, in the order of its objects.
+std::vector<ShapeProfile> trainedProfiles(const CategoryModel& category) {
+  std::vector<ShapeProfile> out;
+  for (const auto& o : category.objects) {
+    if (!o.surface.empty()) out.push_back(shapeProfile(o.surface, o.size));
+  }
+  return out;
+}
+
 // The distance of the measured surface in the fitted box (a tenth wider on each side, from 3 cm
 // above its bottom, to skip the floor, up to 15 cm above its top) to the nearest of the
-// category's training shapes, each in its own box; 2 with fewer than 10 points to judge by.
-float profileDistanceAt(const VerificationScene& scene, const CategoryModel& category, const Eigen::Vector3f& bottom,
-                        float yaw, const Eigen::Vector3f& size) {
+// category's training shapes' profiles (trainedProfiles); 2 with fewer than 10 points to judge by.
+float profileDistanceAt(const VerificationScene& scene, const std::vector<ShapeProfile>& trained,
+                        const Eigen::Vector3f& bottom, float yaw, const Eigen::Vector3f& size) {
   const float c = std::cos(yaw), s = std::sin(yaw);
   const float hx = 0.55f * size.x(), hy = 0.55f * size.y(), top = size.z() + 0.15f;
   std::vector<Eigen::Vector3f> inside;
@@ -413,9 +438,7 @@ float profileDistanceAt(const VerificationScene& scene, const CategoryModel& cat
   if (inside.size() < kMinPoints) return 2.0f;
   const ShapeProfile measured = shapeProfile(inside, size);
   float nearest = 2.0f;
-  for (const auto& o : category.objects) {
-    if (!o.surface.empty()) nearest = std::min(nearest, profileDistance(measured, shapeProfile(o.surface, o.size)));
-  }
+  for (const auto& t : trained) nearest = std::min(nearest, profileDistance(measured, t));
   return nearest;
 }
 
@@ -501,16 +524,12 @@ std::optional<Pose> alignByIcp(const VerificationScene& scene, const ShapeView& 
   return pose;
 }
 
-}  // namespace
-
-bool hasShapes(const CategoryModel& category) {
-  return std::any_of(category.objects.begin(), category.objects.end(), [](const TrainingObject& o) { return !o.surface.empty(); });
-}
-
-std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
-                                   const Hypothesis& hypothesis, const VerificationParams& params,
-                                   const std::unordered_set<uint64_t>* claimed, std::unordered_set<uint64_t>* explained) {
-  if (!hasShapes(category)) return std::nullopt;
+// verify, with the category's trainedProfiles worked out by the caller: once per category when
+// many hypotheses are verified.
+std::optional<Verification> verifyWith(const VerificationScene& scene, const CategoryModel& category,
+                                       const std::vector<ShapeProfile>& profiles, const Hypothesis& hypothesis,
+                                       const VerificationParams& params, const std::unordered_set<uint64_t>* claimed,
+                                       std::unordered_set<uint64_t>* explained) {
   const SceneBox local = sceneBox(scene, hypothesis);
   const UprightBox& box = local.box;
   const Eigen::Vector3f& center = box.center;
@@ -533,14 +552,21 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   const CellSet claimed_cells(claimed);
   const ShapeView sv{*view, floor_z, params.margin, claimed_cells, 0.05f, params.fit_terms};
   std::vector<std::pair<float, Pose>> coarse;
+  std::vector<Eigen::Vector3f> turned;  // each heading's shape in the view, for all its shifts
   for (size_t o = 0; o < category.objects.size(); ++o) {
-    if (category.objects[o].surface.empty()) continue;  // a shape calibration holds out
+    const std::vector<Eigen::Vector3f>& shape = category.objects[o].surface;
+    if (shape.empty()) continue;  // a shape calibration holds out
     for (int y = 0; y < params.coarse_yaws; ++y) {
+      const float yaw = box.yaw + 2 * kPi * static_cast<float>(y) / static_cast<float>(params.coarse_yaws);
+      if (!scene.map) {
+        turnIntoView(*view, shape, std::min<int>(params.coarse_points, static_cast<int>(shape.size())),
+                     Pose{static_cast<int>(o), yaw, Eigen::Vector2f::Zero()}, turned);
+      }
       for (int dx = -params.coarse_steps; dx <= params.coarse_steps; ++dx) {
         for (int dy = -params.coarse_steps; dy <= params.coarse_steps; ++dy) {
-          const Pose pose{static_cast<int>(o), box.yaw + 2 * kPi * static_cast<float>(y) / static_cast<float>(params.coarse_yaws),
+          const Pose pose{static_cast<int>(o), yaw,
                           center.head<2>() + shift * Eigen::Vector2f(static_cast<float>(dx), static_cast<float>(dy))};
-          const Agreement a = poseAgreement(scene, sv, category.objects[o].surface, params.coarse_points, pose, scratch);
+          const Agreement a = poseAgreement(scene, sv, shape, params.coarse_points, pose, scratch, nullptr, &turned);
           coarse.emplace_back(a.rank(), pose);
         }
       }
@@ -585,9 +611,22 @@ std::optional<Verification> verify(const VerificationScene& scene, const Categor
   best.yaw = std::remainder(best_pose.yaw, 2 * kPi);
   const Eigen::Vector3f fitted(best_pose.xy.x(), best_pose.xy.y(), floor_z + object.size.z() / 2);
   best.center = scene.origin + scene.to_gravity.transpose() * fitted;
-  best.profile_distance = profileDistanceAt(scene, category, Eigen::Vector3f(best_pose.xy.x(), best_pose.xy.y(), floor_z),
+  best.profile_distance = profileDistanceAt(scene, profiles, Eigen::Vector3f(best_pose.xy.x(), best_pose.xy.y(), floor_z),
                                             best_pose.yaw, object.size);
   return best;
+}
+
+}  // namespace
+
+bool hasShapes(const CategoryModel& category) {
+  return std::any_of(category.objects.begin(), category.objects.end(), [](const TrainingObject& o) { return !o.surface.empty(); });
+}
+
+std::optional<Verification> verify(const VerificationScene& scene, const CategoryModel& category,
+                                   const Hypothesis& hypothesis, const VerificationParams& params,
+                                   const std::unordered_set<uint64_t>* claimed, std::unordered_set<uint64_t>* explained) {
+  if (!hasShapes(category)) return std::nullopt;
+  return verifyWith(scene, category, trainedProfiles(category), hypothesis, params, claimed, explained);
 }
 
 void verifyHypotheses(const VerificationScene& scene, const Model& model, std::vector<Hypothesis>& hypotheses,
@@ -596,13 +635,16 @@ void verifyHypotheses(const VerificationScene& scene, const Model& model, std::v
   std::stable_sort(hypotheses.begin(), hypotheses.end(),
                    [](const Hypothesis& a, const Hypothesis& b) { return a.confidence > b.confidence; });
   std::map<std::string, std::unordered_set<uint64_t>> explained;
+  std::map<std::string, std::vector<ShapeProfile>> profiles;
   for (auto& h : hypotheses) {
     throwIfStopped(should_stop, "verification");
     const CategoryModel* category = model.find(h.category);
     if (category == nullptr || !hasShapes(*category)) continue;
     std::unordered_set<uint64_t>& own = explained[h.category];
     std::unordered_set<uint64_t> mine;
-    h.verification = verify(scene, *category, h, params, &own, &mine);
+    auto trained = profiles.find(h.category);
+    if (trained == profiles.end()) trained = profiles.emplace(h.category, trainedProfiles(*category)).first;
+    h.verification = verifyWith(scene, *category, trained->second, h, params, &own, &mine);
     own.insert(mine.begin(), mine.end());
     if (!h.verification) continue;
     h.verification->explained.assign(mine.begin(), mine.end());

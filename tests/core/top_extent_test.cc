@@ -85,6 +85,25 @@ TEST(TopExtent, TheBoxSpansTheWholeTopAndNothingBesideIt) {
   }
 }
 
+// A desk's top alone, measured every centimetre: nothing else stands at its height, so its edges
+// are the edges of all the layer holds, where the grid's morphology stops looking. The box keeps
+// them: the top's 2.4 m x 0.8 m and half a sample's spacing on each side.
+TEST(TopExtent, ATopAloneAtItsHeightKeepsItsEdges) {
+  VerificationScene scene;
+  scene.floor_z = 0.0f;
+  for (int i = 0; i <= 240; ++i) {
+    for (int j = 0; j <= 80; ++j) scene.points.emplace_back(-1.2f + 0.01f * i, -0.4f + 0.01f * j, kTop);
+  }
+  Hypothesis h = leftEnd();
+  ASSERT_EQ(extendToTop(scene, h), TopFound::kFound);
+  const UprightBox box = uprightBoxOf(h.box, Eigen::Matrix3f::Identity());
+  EXPECT_NEAR(box.size.x(), 2.41f, 0.002f);
+  EXPECT_NEAR(box.size.y(), 0.81f, 0.002f);
+  EXPECT_NEAR(box.center.x(), 0.0f, 0.002f);
+  EXPECT_NEAR(box.center.y(), 0.0f, 0.002f);
+  EXPECT_NEAR(box.size.z(), kTop, 0.001f);
+}
+
 TEST(TopExtent, WithoutATopTheFittedShapeStays) {
   Hypothesis h = leftEnd();
   UprightBox box = uprightBoxOf(h.box, Eigen::Matrix3f::Identity());
