@@ -107,6 +107,11 @@ float intersectionOverUnion(const UprightBox& a, const UprightBox& b) {
   const float bottom = std::max(a.center.z() - a.size.z() / 2, b.center.z() - b.size.z() / 2);
   const float top = std::min(a.center.z() + a.size.z() / 2, b.center.z() + b.size.z() / 2);
   if (!(top > bottom)) return 0;
+  // Footprints farther apart than their half-diagonals reach have no overlap for the clipping to
+  // find (it would return no polygon): most pairs of a room's hypotheses. The margin keeps the
+  // clipping's rounding on the near side of this test.
+  const float reach = 0.5f * (a.size.head<2>().norm() + b.size.head<2>().norm());
+  if ((a.center.head<2>() - b.center.head<2>()).norm() > 1.001f * reach + 1e-4f) return 0;
   const auto fa = footprint(a);
   const auto fb = footprint(b);
   const float overlap = area(clipConvex({fa.begin(), fa.end()}, fb)) * (top - bottom);

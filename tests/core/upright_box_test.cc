@@ -25,6 +25,19 @@ TEST(UprightBox, IouOfBoxesThatShareOrOverlapVolume) {
   EXPECT_EQ(intersectionOverUnion(unit, box({0, 0, 0.5f}, {1, 0, 1})), 0.0f);
 }
 
+// Two unit squares turned by 45 degrees reach 0.7071 m along x from their centres: 1.41 m apart,
+// their corners overlap in a small square of diagonal 0.0042 m (8.9e-6 m^2), which counts
+// however near the boxes' reach it lies.
+TEST(UprightBox, IouOfCornersOverlappingAtTheBoxesReach) {
+  const float turn = static_cast<float>(M_PI / 4);
+  const UprightBox a = box({0, 0, 0.5f}, {1, 1, 1}, turn);
+  const float diagonal = std::sqrt(2.0f) - 1.41f;
+  EXPECT_NEAR(intersectionOverUnion(a, box({1.41f, 0, 0.5f}, {1, 1, 1}, turn)),
+              diagonal * diagonal / 2 / (2 - diagonal * diagonal / 2), 1e-7f);
+  EXPECT_EQ(intersectionOverUnion(a, box({1.42f, 0, 0.5f}, {1, 1, 1}, turn)), 0.0f);
+  EXPECT_EQ(intersectionOverUnion(a, box({1.0f, 1.0f, 0.5f}, {1, 1, 1}, turn)), 0.0f) << "edge to edge";
+}
+
 TEST(UprightBox, IouFollowsYaw) {
   const UprightBox square = box({0, 0, 0.5f}, {1, 1, 1});
   // A unit square turned by 45 degrees meets the original in an octagon of area 2 (sqrt 2 - 1).
