@@ -225,7 +225,7 @@ struct ShapeBuffer {
 void turnIntoView(const LocalView& view, const std::vector<Eigen::Vector3f>& shape, int n, const Pose& pose,
                   std::vector<Eigen::Vector3f>& turned) {
   const Eigen::Matrix3f to_view = view.axes * headingOf(pose);
-  turned.resize(static_cast<size_t>(n));
+  turned.resize(static_cast<size_t>(std::max(0, n)));
   for (int i = 0; i < n; ++i) turned[static_cast<size_t>(i)] = to_view * shape[static_cast<size_t>(i)];
 }
 
