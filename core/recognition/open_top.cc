@@ -19,10 +19,11 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   std::vector<Eigen::Vector3f> footprint;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
-    if (params.max_level > 0 && local.overFootprint(p)) footprint.push_back(local.boxFrame(p));
-    if (height > params.upper_from && height < params.upper_to && local.overFootprint(p)) {
-      ++check.upper;
-    }
+    const bool over = local.overFootprint(p);
+    if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
+    if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
+    // The inner part of the footprint lies within it (most of the scene is over neither).
+    if (!over && params.inner <= 1) continue;
     if (!local.overFootprint(p, params.inner)) continue;
     if (p.z() > top + params.from && p.z() < top + params.to) {
       ++check.above;

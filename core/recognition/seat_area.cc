@@ -64,10 +64,16 @@ std::vector<char> seenCells(const VerificationScene& scene, const SceneBox& loca
     const int ib = static_cast<int>(std::floor((b - b0) / params.angle + 0.5f));
     return ia < 0 || ia >= na || ib < 0 || ib >= nb ? -1 : ia * nb + ib;
   };
+  // Directions a bin or more outside the probes' (bin() rounds, so the upper side needs one and a
+  // half) fall in no bin: told without dividing, most of the scene.
+  const float a_low = a0 - params.angle, a_high = a1 + 1.5f * params.angle;
+  const float b_low = b0 - params.angle, b_high = b1 + 1.5f * params.angle;
   for (const auto& p : scene.points) {
     const float t = p.dot(forward);
     if (t <= 1e-3f) continue;  // behind the sensor
-    const int k = bin(p.dot(right) / t, p.dot(up) / t);
+    const float along_right = p.dot(right), along_up = p.dot(up);
+    if (along_right < a_low * t || along_right > a_high * t || along_up < b_low * t || along_up > b_high * t) continue;
+    const int k = bin(along_right / t, along_up / t);
     if (k >= 0) nearest[static_cast<size_t>(k)] = std::min(nearest[static_cast<size_t>(k)], t);
   }
   for (size_t i = 0; i < cells.size(); ++i) {
@@ -109,8 +115,8 @@ SeatAreaCheck checkSeatArea(const VerificationScene& scene, const Hypothesis& hy
   if (cells.degenerate()) return check;
   std::vector<Eigen::Vector3f> band;  // only what can count, in the box's frame above the floor
   for (const auto& p : scene.points) {
-    const Eigen::Vector3f q = local.boxFrame(p);
-    if (q.z() >= params.from && q.z() <= params.to) band.push_back(q);
+    const float height = p.z() - local.floor_z;  // boxFrame's z
+    if (height >= params.from && height <= params.to) band.push_back(local.boxFrame(p));
   }
   const std::vector<char> seat = seatCells(band, cells, params);
   std::vector<char> seen = scene.map ? std::vector<char>(cells.size(), 1) : seenCells(scene, local, cells, params);
