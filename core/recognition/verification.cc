@@ -236,7 +236,9 @@ void fillShapeBuffer(const ShapeView& sv, const std::vector<Eigen::Vector3f>& sh
                      float min_height, ShapeBuffer& buffer, const std::vector<Eigen::Vector3f>* turned = nullptr) {
   buffer.touched.clear();
   // The pose and the view in one affine map: the shape's points go straight into the view's axes.
-  const Eigen::Matrix3f to_view = sv.view.axes * headingOf(pose);
+  // Turned points need only the shift, so their heading's turn is not made again per pose.
+  const Eigen::Matrix3f to_view = turned == nullptr ? Eigen::Matrix3f(sv.view.axes * headingOf(pose))
+                                                    : Eigen::Matrix3f::Identity();
   const Eigen::Vector3f view_offset = sv.view.axes * Eigen::Vector3f(pose.xy.x(), pose.xy.y(), sv.floor_z);
   for (int i = 0; i < n; ++i) {
     if (shape[static_cast<size_t>(i)].z() < min_height) continue;
