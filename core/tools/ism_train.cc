@@ -113,6 +113,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-calibration-scene-checks", no_calibration_checks,
                "calibrate on every verified peak of the rendered rooms, not only on those that pass recognition's "
                "checks of the scene around them (scene_checks.h)");
+  bool kind_negatives = false;
+  app.add_flag("--calibration-kind-negatives", kind_negatives,
+               "count a rendered room's peak on an object of another category of its kind (a dining chair's on an "
+               "office chair) against its category, not leave it out of the calibration");
   app.add_flag("--calibration-pooling", params.calibration.pooled,
                "fit each category's confidence with its slopes drawn towards those all categories share, not alone "
                "(for categories with few training meshes)");
@@ -210,6 +214,7 @@ int main(int argc, char** argv) {
   if (no_shapes) params.shape_spacing = 0;
   if (no_shape_profile) params.calibration.shape_profile = false;
   if (no_calibration_checks) params.calibration.scene_checks = false;
+  if (kind_negatives) params.calibration.kinds = false;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
     std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";

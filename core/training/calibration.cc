@@ -181,6 +181,40 @@ CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& f
   return room;
 }
 
+std::string categoryKind(const std::string& category) {
+  const size_t last = category.rfind('_');
+  return last == std::string::npos ? category : category.substr(last + 1);
+}
+
+PeakLabel labelPeak(const std::string& category, const Hypothesis& peak, const std::vector<std::string>& categories,
+                    const std::vector<GroundTruthObject>& objects, const Eigen::Matrix3f& to_gravity, bool kinds,
+                    std::vector<bool>& matched) {
+  const UprightBox peak_box = uprightBoxOf(peak.box, to_gravity);
+  // The evaluation's rules: the centre within a quarter of the object's longest side, or the
+  // boxes overlapping by a quarter.
+  const auto on = [&](size_t o) {
+    const GroundTruthObject& truth = objects[o];
+    const Eigen::Vector2f offset = (to_gravity * (peak.center - truth.center)).head<2>();
+    const UprightBox box{to_gravity * truth.center, truth.size, truth.yaw};
+    return offset.norm() <= truth.size.maxCoeff() / 4 || intersectionOverUnion(peak_box, box) >= 0.25f;
+  };
+  for (size_t o = 0; o < categories.size(); ++o) {
+    if (!matched[o] && categories[o] == category && on(o)) {
+      matched[o] = true;
+      return PeakLabel::kPositive;
+    }
+  }
+  if (kinds) {
+    const std::string kind = categoryKind(category);
+    for (size_t o = 0; o < categories.size(); ++o) {
+      if (!categories[o].empty() && categories[o] != category && categoryKind(categories[o]) == kind && on(o)) {
+        return PeakLabel::kLeftOut;
+      }
+    }
+  }
+  return PeakLabel::kNegative;
+}
+
 namespace {
 
 // The room's frame as an unorganized cloud: a random `fraction` of its points, no image grid.
@@ -198,12 +232,11 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
   return sample;
 }
 
-// Labels one room's peaks, category by category: the best peak on an object of its category is a
-// positive, every other peak that is not another peak of that object a negative. `checks`: each
-// category's scene checks, or empty to label every verified peak.
+// Labels one room's peaks, category by category, as labelPeak does, most confident first.
+// `checks`: each category's scene checks, or empty to label every verified peak.
 void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
                 const VerificationScene& view, bool cloud, const VerificationParams& verification,
-                const std::vector<SceneChecks>& checks, std::vector<CalibrationSample>& out) {
+                const std::vector<SceneChecks>& checks, bool kinds, std::vector<CalibrationSample>& out) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -224,18 +257,9 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
     }
     std::vector<bool> matched(room.categories.size(), false);
     for (const auto& p : own) {  // most confident, i.e. highest score, first
-      bool positive = false;
-      for (size_t o = 0; o < room.categories.size() && !positive; ++o) {
-        if (matched[o] || room.categories[o] != name) continue;
-        const GroundTruthObject& truth = room.scene.objects[o];
-        const Eigen::Vector2f offset = (to_gravity * (p.center - truth.center)).head<2>();
-        const UprightBox box{to_gravity * truth.center, truth.size, truth.yaw};
-        // The evaluation's rules: the centre within a quarter of the object's longest side, or
-        // the boxes overlapping by a quarter.
-        positive = offset.norm() <= truth.size.maxCoeff() / 4 ||
-                   intersectionOverUnion(uprightBoxOf(p.box, to_gravity), box) >= 0.25f;
-        if (positive) matched[o] = true;
-      }
+      const PeakLabel label = labelPeak(name, p, room.categories, room.scene.objects, to_gravity, kinds, matched);
+      if (label == PeakLabel::kLeftOut) continue;
+      const bool positive = label == PeakLabel::kPositive;
       CalibrationSample& sample = out.emplace_back();
       sample.category = static_cast<int>(c);
       sample.score = p.score;
@@ -329,7 +353,8 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
           category_options.verify = false;  // labelPeaks verifies what recognition's suppression keeps
           auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
           const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
-          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, checks, found);
+          labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, checks, cp.kinds,
+                     found);
         }
       };
       look(room.scene.scene, false);

@@ -8,7 +8,7 @@
 // on (k-fold over the training objects, votes of the held-out fold left out), cameras at a
 // robot's and a person's height.
 // Every peak of a category that passes recognition's checks of the scene around it
-// (scene_checks.h) is labelled by whether an object of that category is there; a
+// (scene_checks.h) is labelled by whether an object of that category is there (labelPeak); a
 // logistic regression over the log score, the log score per supporting keypoint and, where the
 // model keeps training shapes, the verification's fit and shape profile distance gives the confidence (Calibration; Platt, "Probabilistic outputs for support vector machines", 1999).
 #include <optional>
@@ -17,7 +17,9 @@
 #include <vector>
 
 #include "core/model/model.h"
+#include "core/recognition/hypothesis.h"
 #include "core/scanner/mesh.h"
+#include "core/scanner/scanner.h"
 #include "core/training/trainer.h"
 
 namespace ism {
@@ -57,6 +59,24 @@ struct CalibrationSample {
   bool cloud = false;  // found in a room seen as an unorganized point sample
   int fold = 0;        // the calibration fold whose rooms it was found in
 };
+
+// A category's kind: the last word of its name ("office_chair" and "dining_chair" are chairs,
+// "dining_table" a table, "couch" a couch), as the evaluation's classes group them (eval.h).
+std::string categoryKind(const std::string& category);
+
+// What a rendered room's peak teaches its category's calibration.
+enum class PeakLabel { kPositive, kNegative, kLeftOut };
+
+// Labels a peak of `category` against the room's furniture (`objects[o]` of category
+// `categories[o]`, "" for clutter) by the evaluation's rules (its centre within a quarter of the
+// object's longest side, or the upright boxes overlapping by a quarter): positive on an object of
+// its category that no better peak of it took (`matched`, which it then marks); with `kinds`, left
+// out on an object of another category of its kind (a dining chair's peak on an office chair:
+// neither the chair it is nor the category it names; CalibrationParams::kinds); otherwise a
+// negative, a second peak on a taken object too (recognition would answer that object twice).
+PeakLabel labelPeak(const std::string& category, const Hypothesis& peak, const std::vector<std::string>& categories,
+                    const std::vector<GroundTruthObject>& objects, const Eigen::Matrix3f& to_gravity, bool kinds,
+                    std::vector<bool>& matched);
 
 // The peaks of the calibration scenes, every category's. `scans` are the training scans the
 // model was trained from (their votes are re-made per fold).

@@ -63,6 +63,51 @@ bool holdsBed(const CalibrationRoom& room) {
   return false;
 }
 
+TEST(CategoryKind, IsTheLastWordOfTheName) {
+  EXPECT_EQ(categoryKind("office_chair"), "chair");
+  EXPECT_EQ(categoryKind("dining_chair"), "chair");
+  EXPECT_EQ(categoryKind("dining_table"), "table");
+  EXPECT_EQ(categoryKind("couch"), "couch");
+  EXPECT_EQ(categoryKind("low_side_table"), "table");
+}
+
+// A room seen with z up: an office chair, a dining chair, a table and a box of clutter, 2 m apart.
+struct LabelRoom {
+  std::vector<std::string> categories{"office_chair", "dining_chair", "dining_table", ""};
+  std::vector<GroundTruthObject> objects{
+      {"office_chair", {0, 0, 0.45f}, {0.6f, 0.6f, 0.9f}, 0, 0},
+      {"dining_chair", {2, 0, 0.45f}, {0.45f, 0.5f, 0.9f}, 0, 0},
+      {"dining_table", {0, 2, 0.37f}, {1.6f, 0.8f, 0.75f}, 0, 0},
+      {"", {-2, 0, 0.3f}, {0.6f, 0.6f, 0.6f}, 0, 0}};
+  std::vector<bool> matched = std::vector<bool>(4, false);
+
+  PeakLabel label(const Eigen::Vector3f& at, bool kinds = true) {
+    Hypothesis peak;
+    peak.category = "dining_chair";
+    peak.center = at;
+    peak.box.center = at;
+    peak.box.size = {0.45f, 0.5f, 0.9f};
+    return labelPeak("dining_chair", peak, categories, objects, Eigen::Matrix3f::Identity(), kinds, matched);
+  }
+};
+
+TEST(LabelPeak, APeakOnAChairOfTheOtherKindIsLeftOutNotCountedAgainst) {
+  LabelRoom room;
+  EXPECT_EQ(room.label({0.05f, 0.02f, 0.45f}), PeakLabel::kLeftOut) << "a dining chair's peak on the office chair";
+  EXPECT_EQ(room.label({0.05f, 0.02f, 0.45f}, false), PeakLabel::kNegative) << "counted against, as the seed's rooms";
+  EXPECT_EQ(room.label({0, 2, 0.45f}), PeakLabel::kNegative) << "on the table: another kind";
+  EXPECT_EQ(room.label({-2, 0, 0.45f}), PeakLabel::kNegative) << "on the clutter";
+  EXPECT_EQ(room.label({1, 0, 0.45f}), PeakLabel::kNegative) << "between the chairs, on neither";
+  EXPECT_EQ(room.matched, std::vector<bool>(4, false)) << "only a positive takes its object";
+}
+
+TEST(LabelPeak, TheFirstPeakOnAnObjectOfItsCategoryIsPositiveASecondNegative) {
+  LabelRoom room;
+  EXPECT_EQ(room.label({2.05f, 0, 0.45f}), PeakLabel::kPositive);
+  EXPECT_EQ(room.matched, (std::vector<bool>{false, true, false, false}));
+  EXPECT_EQ(room.label({1.95f, 0.03f, 0.45f}), PeakLabel::kNegative) << "recognition would answer the chair twice";
+}
+
 TEST(CalibrationRoom, BackgroundFurnitureStandsAmongTheClutter) {
   const Mesh chair = testing::boxMesh({-0.25f, -0.25f, 0}, {0.25f, 0.25f, 0.9f});
   const Mesh bed = testing::boxMesh({-0.95f, -0.7f, 0}, {0.95f, 0.7f, 0.5f});
