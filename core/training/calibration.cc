@@ -186,9 +186,10 @@ std::string categoryKind(const std::string& category) {
   return last == std::string::npos ? category : category.substr(last + 1);
 }
 
-PeakLabel labelPeak(const std::string& category, const Hypothesis& peak, const std::vector<std::string>& categories,
+PeakLabel labelPeak(const Hypothesis& peak, const std::vector<std::string>& categories,
                     const std::vector<GroundTruthObject>& objects, const Eigen::Matrix3f& to_gravity, bool kinds,
                     std::vector<bool>& matched) {
+  const std::string& category = peak.category;
   const UprightBox peak_box = uprightBoxOf(peak.box, to_gravity);
   // The evaluation's rules: the centre within a quarter of the object's longest side, or the
   // boxes overlapping by a quarter.
@@ -257,7 +258,7 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
     }
     std::vector<bool> matched(room.categories.size(), false);
     for (const auto& p : own) {  // most confident, i.e. highest score, first
-      const PeakLabel label = labelPeak(name, p, room.categories, room.scene.objects, to_gravity, kinds, matched);
+      const PeakLabel label = labelPeak(p, room.categories, room.scene.objects, to_gravity, kinds, matched);
       if (label == PeakLabel::kLeftOut) continue;
       const bool positive = label == PeakLabel::kPositive;
       CalibrationSample& sample = out.emplace_back();

@@ -67,14 +67,14 @@ std::string categoryKind(const std::string& category);
 // What a rendered room's peak teaches its category's calibration.
 enum class PeakLabel { kPositive, kNegative, kLeftOut };
 
-// Labels a peak of `category` against the room's furniture (`objects[o]` of category
-// `categories[o]`, "" for clutter) by the evaluation's rules (its centre within a quarter of the
-// object's longest side, or the upright boxes overlapping by a quarter): positive on an object of
-// its category that no better peak of it took (`matched`, which it then marks); with `kinds`, left
-// out on an object of another category of its kind (a dining chair's peak on an office chair:
-// neither the chair it is nor the category it names; CalibrationParams::kinds); otherwise a
-// negative, a second peak on a taken object too (recognition would answer that object twice).
-PeakLabel labelPeak(const std::string& category, const Hypothesis& peak, const std::vector<std::string>& categories,
+// Labels a peak against the room's furniture (`objects[o]` of category `categories[o]`, "" for
+// clutter) by the evaluation's rules (its centre within a quarter of the object's longest side, or
+// the upright boxes overlapping by a quarter): positive on an object of the peak's category that no
+// better peak of it took (`matched`, which it then marks); with `kinds`, left out on an object of
+// another category of its kind (a dining chair's peak on an office chair: neither the chair it is
+// nor the category it names; CalibrationParams::kinds); otherwise a negative, a second peak on a
+// taken object too (recognition would answer that object twice).
+PeakLabel labelPeak(const Hypothesis& peak, const std::vector<std::string>& categories,
                     const std::vector<GroundTruthObject>& objects, const Eigen::Matrix3f& to_gravity, bool kinds,
                     std::vector<bool>& matched);
 

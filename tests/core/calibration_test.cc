@@ -87,7 +87,7 @@ struct LabelRoom {
     peak.center = at;
     peak.box.center = at;
     peak.box.size = {0.45f, 0.5f, 0.9f};
-    return labelPeak("dining_chair", peak, categories, objects, Eigen::Matrix3f::Identity(), kinds, matched);
+    return labelPeak(peak, categories, objects, Eigen::Matrix3f::Identity(), kinds, matched);
   }
 };
 
