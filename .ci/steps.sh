@@ -115,13 +115,33 @@ asan_step() {
   return $status
 }
 
-# Runs FUNCTION, prints its wall time, and remembers a failure in $failed without stopping.
+# Runs FUNCTION, prints its wall time, and remembers a failure in $failed without stopping. The
+# step's output also goes to ci-logs/NAME.log, which failure_digest reads.
 failed=()
 timings=""
 run_step() {  # NAME FUNCTION
-  local start=$SECONDS
+  local start=$SECONDS status
+  mkdir -p ci-logs
   echo "== $1"
-  if ! "$2"; then failed+=("$1"); fi
+  # As a condition, so that set -e neither stops the step at its first failing command nor the
+  # run at a failed step; with pipefail the pipeline fails when the step does.
+  if "$2" 2>&1 | tee "ci-logs/$1.log"; then status=0; else status=$?; fi
+  if ((status != 0)); then failed+=("$1"); fi
   timings+="${timings:+, }$1 $((SECONDS - start)) s"
   echo "== $1: $((SECONDS - start)) s"
+}
+
+# What made the failed steps fail, in a few lines, for the end of the run: where a CI system shows
+# only the last lines of a long log, the failed tests and the first frames of each sanitizer report
+# are there to read.
+failure_digest() {
+  local name lines
+  local pattern='\*\*\*(Failed|Timeout|Exception)|\((Failed|Timeout|SEGFAULT|Subprocess aborted|Child aborted)\)'
+  pattern+='|tests failed|WARNING: ThreadSanitizer|ERROR: (Address|Leak)Sanitizer|runtime error:|SUMMARY: '
+  pattern+='|sanitizer reports in|FAILED:|error:'
+  for name in "${failed[@]}"; do
+    echo "== what failed in $name (ci-logs/$name.log):"
+    lines=$(grep -E -A4 "$pattern" "ci-logs/$name.log" | grep -v -E '^ +Start ' | head -n 40 || true)
+    if [[ -n $lines ]]; then echo "$lines"; else tail -n 10 "ci-logs/$name.log"; fi
+  done
 }
