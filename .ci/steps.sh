@@ -138,7 +138,7 @@ failure_digest() {
   local name lines
   local pattern='\*\*\*(Failed|Timeout|Exception)|\((Failed|Timeout|SEGFAULT|Subprocess aborted|Child aborted)\)'
   pattern+='|tests failed|WARNING: ThreadSanitizer|ERROR: (Address|Leak)Sanitizer|runtime error:|SUMMARY: '
-  pattern+='|sanitizer reports in|FAILED:|error:'
+  pattern+='|sanitizer reports in|FAILED:|error:|: Failure$|^\[  FAILED  \] [A-Za-z]'
   for name in "${failed[@]}"; do
     echo "== what failed in $name (ci-logs/$name.log):"
     lines=$(grep -E -A4 "$pattern" "ci-logs/$name.log" | grep -v -E '^ +Start ' | head -n 40 || true)
