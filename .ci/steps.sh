@@ -120,13 +120,12 @@ asan_step() {
 failed=()
 timings=""
 run_step() {  # NAME FUNCTION
-  local start=$SECONDS status
+  local start=$SECONDS
   mkdir -p ci-logs
   echo "== $1"
   # As a condition, so that set -e neither stops the step at its first failing command nor the
   # run at a failed step; with pipefail the pipeline fails when the step does.
-  if "$2" 2>&1 | tee "ci-logs/$1.log"; then status=0; else status=$?; fi
-  if ((status != 0)); then failed+=("$1"); fi
+  if ! "$2" 2>&1 | tee "ci-logs/$1.log"; then failed+=("$1"); fi
   timings+="${timings:+, }$1 $((SECONDS - start)) s"
   echo "== $1: $((SECONDS - start)) s"
 }

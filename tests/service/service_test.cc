@@ -603,24 +603,24 @@ TEST(ServiceDeadline, ADeadlineThatPassedBeforeTheRequestWasReadIsCountedAsSuch)
   // under ThreadSanitizer, another test beside it), and no fixed deadline is long enough on every
   // machine: a call the server did not see is made again with twice the deadline, and the verdict
   // is on the calls it saw.
-  int calls = 0, gave_up = 0;
+  int calls = 0, counted = 0;
   std::map<std::string, int> codes;
-  for (auto deadline = std::chrono::milliseconds(3000); gave_up == 0 && calls < 5; deadline *= 2) {
+  for (auto deadline = std::chrono::milliseconds(3000); counted == 0 && calls < 5; deadline *= 2) {
     const grpc::Status status =
         callWithoutItsRequest(server.channel(), "/ism.v1.FurnitureRecognizer/Recognize", deadline, false);
     ++calls;
     EXPECT_EQ(status.error_code(), grpc::StatusCode::DEADLINE_EXCEEDED) << status.error_message();
     // A call the server saw is counted once its deadline has passed there too.
     codes = recognizeCodesOnceCounted(server, 1, std::chrono::seconds(20));
-    gave_up = 0;
-    for (const auto& [code, n] : codes) gave_up += n;
+    counted = 0;
+    for (const auto& [code, n] : codes) counted += n;
   }
   // The server never saw a request: the caller gave up, which says nothing about malformed input.
   for (const auto& [code, n] : codes) {
     EXPECT_TRUE(n == 0 || code == "DEADLINE_EXCEEDED" || code == "CANCELLED") << code << " " << n;
   }
-  EXPECT_GE(gave_up, 1) << "the server saw none of " << calls << " calls";
-  EXPECT_LE(gave_up, calls);
+  EXPECT_GE(counted, 1) << "the server saw none of " << calls << " calls";
+  EXPECT_LE(counted, calls);
   v1::RecognizeRequest request;
   *request.mutable_scene() = rawDepthMessage(smallScene().depth);
   grpc::ClientContext context;
