@@ -16,14 +16,24 @@ configure_clang() {  # BUILD_DIR [cmake -D options...]
 
 # Reports that processes other than ctest's own wrote. The tests start ism-server and ism-client
 # as child processes and stop the server with SIGKILL, so a sanitizer report there would change
-# no exit status a test checks; log_path sends every process's reports to DIR/NAME.PID instead,
-# and a file there fails the step.
+# no exit status a test checks; log_path sends every process's reports to DIR/NAME.EXE.PID
+# instead (log_exe_name), and a report there fails the step. A sanitizer creates its file when it
+# begins to write, so an empty one holds no report (its process died before writing a byte,
+# e.g. by the SIGKILL that ends a test's server): it is listed, not counted. Contents go through
+# cat -v, so that bytes that are not text can neither hide a report nor stop the digest's grep.
 sanitizer_reports() {  # DIR
-  local reports=("$1"/*.[0-9]*)
-  [[ -e ${reports[0]} ]] || return 0
-  echo "sanitizer reports in ${#reports[@]} process(es):"
-  head -n 60 "${reports[@]}"
-  return 1
+  local file count=0
+  for file in "$1"/*.[0-9]*; do
+    [[ -e $file ]] || continue
+    if [[ ! -s $file ]]; then
+      echo "empty sanitizer report file (no report in it): $file"
+      continue
+    fi
+    count=$((count + 1))
+    echo "sanitizer report from $(basename "$file") ($(wc -c < "$file") bytes):"
+    head -n 60 "$file" | cat -v
+  done
+  ((count == 0)) || { echo "sanitizer reports in $count process(es)"; return 1; }
 }
 
 # libFuzzer over every decoder: ISM_FUZZ_SECONDS each over the seed corpus in tests/fuzz/corpus.
@@ -76,7 +86,7 @@ seed_test_model() {  # BUILD_DIR
 # out of the picture. .ci/tsan.supp says what else is left out and why.
 tsan_step() {
   configure_clang build-tsan -DISM_SANITIZE=thread || return
-  local options="halt_on_error=0 second_deadlock_stack=1 ignore_noninstrumented_modules=1"
+  local options="halt_on_error=0 second_deadlock_stack=1 ignore_noninstrumented_modules=1 log_exe_name=1"
   options+=" suppressions=$PWD/.ci/tsan.supp"
   # The build runs service_test to list its tests (gtest_discover_tests), so it needs them too.
   TSAN_OPTIONS=$options cmake --build build-tsan -j"$jobs" --target ism-server ism-client service_test || return
@@ -107,8 +117,8 @@ asan_step() {
   local reports=$PWD/build-asan/sanitizer-reports
   rm -rf "$reports" && mkdir -p "$reports"
   local status=0
-  ASAN_OPTIONS="log_path=$reports/asan" LSAN_OPTIONS="suppressions=$PWD/.ci/lsan.supp print_suppressions=0" \
-    UBSAN_OPTIONS="log_path=$reports/ubsan print_stacktrace=1" \
+  ASAN_OPTIONS="log_path=$reports/asan log_exe_name=1" LSAN_OPTIONS="suppressions=$PWD/.ci/lsan.supp print_suppressions=0" \
+    UBSAN_OPTIONS="log_path=$reports/ubsan log_exe_name=1 print_stacktrace=1" \
     ctest --test-dir build-asan -L "core|service" -E "$too_slow_instrumented" --output-on-failure --timeout 1800 \
     || status=$?
   sanitizer_reports "$reports" || status=1
@@ -137,10 +147,10 @@ failure_digest() {
   local name lines
   local pattern='\*\*\*(Failed|Timeout|Exception)|\((Failed|Timeout|SEGFAULT|Subprocess aborted|Child aborted)\)'
   pattern+='|tests failed|WARNING: ThreadSanitizer|ERROR: (Address|Leak)Sanitizer|runtime error:|SUMMARY: '
-  pattern+='|sanitizer reports in|FAILED:|error:|: Failure$|^\[  FAILED  \] [A-Za-z]'
+  pattern+='|sanitizer report|FAILED:|error:|: Failure$|^\[  FAILED  \] [A-Za-z]'
   for name in "${failed[@]}"; do
     echo "== what failed in $name (ci-logs/$name.log):"
-    lines=$(grep -E -A4 "$pattern" "ci-logs/$name.log" | grep -v -E '^ +Start ' | head -n 40 || true)
+    lines=$(grep -a -E -A4 "$pattern" "ci-logs/$name.log" | grep -v -E '^ +Start ' | head -n 40 || true)
     if [[ -n $lines ]]; then echo "$lines"; else tail -n 10 "ci-logs/$name.log"; fi
   done
 }
