@@ -217,6 +217,17 @@ struct ClassScore {
     float best_iou = 0, best_iou_confidence = 0, nearest_distance = 0;
   };
   std::vector<ObjectOutcome> outcomes;
+  // Every detection as ranked25 counts it, with what its category's calibration weighed
+  // (tests/eval/domain_gap.py sets them beside the calibration rooms' peaks).
+  struct Candidate {
+    std::string scene, category;
+    bool tp25 = false;
+    float confidence = 0, score = 0;
+    int support = 0;
+    bool verified = false;
+    float fit = 0, profile_distance = 0;  // when verified
+  };
+  std::vector<Candidate> candidates;
 };
 
 // The score a class ranks its detections by: hypotheses of several model categories compete for
@@ -246,6 +257,7 @@ class ClassScorer {
     std::vector<std::pair<float, bool>> ranked;  // counted detections: merged FPs count once
     std::vector<std::pair<float, bool>> ranked25;  // every detection, by 3D IoU
     std::vector<ClassScore::ObjectOutcome> outcomes;
+    std::vector<ClassScore::Candidate> candidates;
   };
   std::vector<Class> classes_;
   std::map<std::string, float> radius_;  // model category -> 1/4 of its maximum box edge

@@ -161,11 +161,18 @@ std::string realToJson(const RealResult& result) {
         outcomes.push_back({{"scene", o.scene}, {"best_iou", o.best_iou}, {"best_iou_confidence", o.best_iou_confidence},
                             {"nearest_distance", std::isinf(o.nearest_distance) ? json(nullptr) : json(o.nearest_distance)}});
       }
+      json candidates = json::array();
+      for (const auto& d : k.candidates) {
+        candidates.push_back({{"scene", d.scene}, {"category", d.category}, {"tp25", d.tp25}, {"confidence", d.confidence},
+                              {"score", d.score}, {"support", d.support},
+                              {"fit", d.verified ? json(d.fit) : json(nullptr)},
+                              {"profile_distance", d.verified ? json(d.profile_distance) : json(nullptr)}});
+      }
       classes.push_back({{"class", k.name}, {"model_categories", k.model_categories}, {"objects", k.objects},
                          {"scenes", k.scenes}, {"tp", k.tp}, {"fp", k.fp}, {"fn", k.fn}, {"rate", k.rate},
                          {"ap", k.ap}, {"ap25", k.ap25}, {"tp25", k.tp25}, {"fp25", k.fp25},
                          {"recall_precision25", pr}, {"confidence_tp25", ranked},
-                         {"objects_outcome", outcomes}});
+                         {"objects_outcome", outcomes}, {"candidates", candidates}});
     }
     combinations.push_back({{"strategy", c.strategy}, {"classes", classes}, {"map25", meanAp25(c)}});
   }

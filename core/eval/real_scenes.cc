@@ -295,9 +295,11 @@ std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& o
       boxes.push_back({to_gravity * o.center, o.size, o.yaw});
     }
     std::vector<ScoredDetection> detections, all;
+    std::vector<const Hypothesis*> of_all;
     for (const Hypothesis& h : hypotheses) {
       if (!h.passed_selection || !contains(c.model_categories, h.category)) continue;
       all.push_back({rankingScore(h), h.support_centroid, radius_.at(h.category), uprightBoxOf(h.box, to_gravity)});
+      of_all.push_back(&h);
       if (h.confidence >= min_confidence) detections.push_back(all.back());
     }
     const auto by_iou = matchDetectionsByIou(all, boxes, 0.25f);
@@ -312,6 +314,14 @@ std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& o
     }
     for (size_t d = 0; d < all.size(); ++d) {
       c.ranked25.emplace_back(all[d].score, by_iou[d]);
+      const Hypothesis& h = *of_all[d];
+      ClassScore::Candidate candidate{scene_name, h.category, by_iou[d], h.confidence, h.score, h.support};
+      if (h.verification) {
+        candidate.verified = true;
+        candidate.fit = h.verification->fit();
+        candidate.profile_distance = h.verification->profile_distance;
+      }
+      c.candidates.push_back(std::move(candidate));
       if (all[d].score >= min_confidence) (by_iou[d] ? c.tp25 : c.fp25) += 1;
     }
     c.scenes += 1;
@@ -354,6 +364,7 @@ std::vector<ClassScore> ClassScorer::scores() const {
     std::stable_sort(score.ranked25.begin(), score.ranked25.end(),
                      [](const auto& a, const auto& b) { return a.first > b.first; });
     score.outcomes = c.outcomes;
+    score.candidates = c.candidates;
     out.push_back(score);
   }
   return out;

@@ -1,6 +1,7 @@
 // ism-train: CAD meshes -> virtual scans -> trained ISM model file.
 #include <CLI/CLI.hpp>
 #include <cstdint>
+#include <fstream>
 #include <iostream>
 #include <map>
 #include <optional>
@@ -8,6 +9,7 @@
 #include "core/common/cli_checks.h"
 #include "core/common/error.h"
 #include "core/model/model_file.h"
+#include "core/training/calibration.h"
 #include "core/training/trainer.h"
 
 namespace {
@@ -40,6 +42,10 @@ int main(int argc, char** argv) {
                                       "meshes that weigh the codewords against what is not furniture");
   folders_opt->excludes(manifest_opt);
   app.add_option("-o,--output", output, "model file to write")->required();
+  std::string samples_path;
+  app.add_option("--calibration-samples", samples_path,
+                 "also write the calibration rooms' labelled peaks as TSV (one row per peak, every draw's; "
+                 "tests/eval/domain_gap.py reads it)");
   app.add_option("--codebook", codebook, "global, separated or both")->check(CLI::IsMember({"global", "separated", "both"}));
   app.add_option("--k-global", params.global_kmeans.k, "codewords of the global codebook")->check(ism::cli::positive());
   std::string codebook_sampling = params.balanced_global_codebook ? "balanced" : "pooled";
@@ -241,6 +247,24 @@ int main(int argc, char** argv) {
   params.separated_codebooks = codebook != "global";
   for (int i = 0; i < argc; ++i) params.command += (i ? " " : "") + std::string(argv[i]);
   params.progress = [](const std::string& line) { std::cout << line << std::endl; };
+  std::ofstream samples_file;
+  int draw = 0;
+  if (!samples_path.empty()) {
+    samples_file.open(samples_path);
+    if (!samples_file) {
+      std::cerr << "ism-train: --calibration-samples: cannot write " << samples_path << '\n';
+      return 2;
+    }
+    samples_file << "draw\tcategory\tpositive\tscore\tsupport\tfit\tprofile_distance\tcloud\tfold\n";
+    params.calibration_samples = [&](const ism::Model& model, const std::vector<ism::CalibrationSample>& samples) {
+      for (const auto& x : samples) {
+        samples_file << draw << '\t' << model.categories[static_cast<size_t>(x.category)].name << '\t' << x.positive
+                     << '\t' << x.score << '\t' << x.support << '\t' << x.fit << '\t' << x.profile_distance << '\t'
+                     << x.cloud << '\t' << x.fold << '\n';
+      }
+      ++draw;
+    };
+  }
   try {
     const auto meshes = folders.empty() ? ism::readManifest(manifest) : ism::meshesFromFolders(folders);
     for (const auto& m : meshes) params.bin_sizes.emplace(m.category, ism::defaultBinSize(m.category));
@@ -255,6 +279,10 @@ int main(int argc, char** argv) {
       model.draws.push_back(ism::train(meshes, again));
     }
     ism::saveModel(model, output);
+    if (samples_file.is_open() && !samples_file.flush()) {
+      std::cerr << "ism-train: --calibration-samples: writing " << samples_path << " failed\n";
+      return 1;
+    }
     std::cout << "wrote " << output << " (" << model.categories.size() << " categories)" << std::endl;
   } catch (const ism::Error& e) {
     std::cerr << "ism-train: " << ism::errorCodeName(e.code()) << ": " << e.what() << '\n';

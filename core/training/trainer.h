@@ -15,6 +15,8 @@
 
 namespace ism {
 
+struct CalibrationSample;  // calibration.h
+
 // The rendered rooms calibration (calibration.h) fits confidences to.
 struct CalibrationParams {
   bool enabled = true;
@@ -148,6 +150,9 @@ struct TrainingParams {
   int threads = 0;  // 0 = all cores
   // Progress lines ("scanning couch 3/5 ...") with timings; may be empty.
   std::function<void(const std::string&)> progress;
+  // Given the calibration's labelled peaks before they are fitted (ism-train --calibration-samples,
+  // which tests/eval/domain_gap.py sets beside the real scans' candidates); may be empty.
+  std::function<void(const Model&, const std::vector<CalibrationSample>&)> calibration_samples;
   std::string command;  // recorded in provenance
 };
 

@@ -4,13 +4,16 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
+#include <map>
 
 #include "core/model/model_file.h"
 #include "core/recognition/recognizer.h"
+#include "core/training/calibration.h"
 #include "core/training/trainer.h"
 #include "tests/common/synthetic_furniture.h"
 
@@ -74,6 +77,12 @@ class EndToEnd : public ::testing::Test {
     for (const auto& c : kCategories) params.bin_sizes[c] = defaultBinSize(c);
     params.command = "e2e_test";
     params.progress = [](const std::string& line) { std::cout << "  [train] " << line << '\n'; };
+    params.calibration_samples = [](const Model& model, const std::vector<CalibrationSample>& samples) {
+      ++sample_calls_;
+      for (const auto& x : samples) {
+        sample_counts_[model.categories[static_cast<size_t>(x.category)].name][x.cloud][x.positive] += 1;
+      }
+    };
     const auto start = std::chrono::steady_clock::now();
     const Model trained = train(meshes, params);
     std::cout << "  training took " << secondsSince(start) << " s\n";
@@ -116,10 +125,15 @@ class EndToEnd : public ::testing::Test {
 
   static fs::path dir_;
   static Model* model_;
+  // What TrainingParams::calibration_samples was given: per category, [cloud][positive] counts.
+  static int sample_calls_;
+  static std::map<std::string, std::array<std::array<int, 2>, 2>> sample_counts_;
 };
 
 fs::path EndToEnd::dir_;
 Model* EndToEnd::model_ = nullptr;
+int EndToEnd::sample_calls_ = 0;
+std::map<std::string, std::array<std::array<int, 2>, 2>> EndToEnd::sample_counts_;
 
 TEST_F(EndToEnd, ModelKeepsProvenance) {
   EXPECT_EQ(model_->provenance.meshes.size(), kCategories.size() * kVariants);
@@ -136,6 +150,19 @@ TEST_F(EndToEnd, CalibratedOnFramesAndOnPointSamples) {
     ASSERT_TRUE(c.cloud_calibration) << c.name << ": the rooms seen as point samples";
     EXPECT_GT(c.cloud_calibration->positives, 0) << c.name;
     EXPECT_GT(c.cloud_calibration->negatives, 0) << c.name;
+  }
+}
+
+// ism-train --calibration-samples writes what the calibration was fitted to: the peaks each curve
+// counts, no more and no fewer.
+TEST_F(EndToEnd, TheCalibrationsSamplesAreHandedOutAsFitted) {
+  EXPECT_EQ(sample_calls_, 1);
+  for (const auto& c : model_->categories) {
+    const auto& counts = sample_counts_[c.name];
+    EXPECT_EQ(counts[0][1], c.calibration->positives) << c.name;
+    EXPECT_EQ(counts[0][0], c.calibration->negatives) << c.name;
+    EXPECT_EQ(counts[1][1], c.cloud_calibration->positives) << c.name;
+    EXPECT_EQ(counts[1][0], c.cloud_calibration->negatives) << c.name;
   }
 }
 

@@ -231,6 +231,44 @@ TEST(EvalScorer, BoxesAreComparedInTheGravityFrameAndModelNamesMatchTheirOwnObje
   EXPECT_EQ(levelled.scores()[1].tp25, 0);
 }
 
+// Each detection is kept with what the calibration weighed, for tests/eval/domain_gap.py.
+TEST(EvalScorer, EveryDetectionIsKeptWithItsScoreSupportAndFit) {
+  Model model;
+  CategoryModel chair_category;
+  chair_category.name = "dining_chair";
+  chair_category.box.max_edge = 0.9f;
+  model.categories.push_back(chair_category);
+  ClassScorer scorer(model, defaultCategoryMapping());
+  const GroundTruthObject chair{"chair", {0, 0, 0.45f}, {0.5f, 0.5f, 0.9f}, 0};
+  Hypothesis on_chair = hypothesis("dining_chair", 4, chair.center);
+  on_chair.box = UprightBox{chair.center, chair.size, 0}.toScene(Eigen::Matrix3f::Identity());
+  on_chair.support = 35;
+  on_chair.verification = Verification{};
+  on_chair.verification->seen = 80;
+  on_chair.verification->consistent = 60;
+  on_chair.verification->profile_distance = 0.4f;
+  Hypothesis elsewhere = hypothesis("dining_chair", 2, {3, 0, 0.45f});
+  elsewhere.support = 12;
+  Hypothesis rejected = hypothesis("dining_chair", 5, {6, 0, 0.45f}, false);  // failed selection: not a detection
+  scorer.addScene({chair}, {on_chair, elsewhere, rejected}, Eigen::Matrix3f::Identity(), 0.5f, "room");
+  const auto scores = scorer.scores();
+  ASSERT_EQ(scores.size(), 1u);
+  const auto& candidates = scores[0].candidates;
+  ASSERT_EQ(candidates.size(), 2u);
+  EXPECT_EQ(candidates[0].scene, "room");
+  EXPECT_EQ(candidates[0].category, "dining_chair");
+  EXPECT_TRUE(candidates[0].tp25);
+  EXPECT_FLOAT_EQ(candidates[0].confidence, 0.4f);
+  EXPECT_FLOAT_EQ(candidates[0].score, 4.0f);
+  EXPECT_EQ(candidates[0].support, 35);
+  EXPECT_TRUE(candidates[0].verified);
+  EXPECT_FLOAT_EQ(candidates[0].fit, 0.7f);  // (60 + 10) / (80 + 20)
+  EXPECT_FLOAT_EQ(candidates[0].profile_distance, 0.4f);
+  EXPECT_FALSE(candidates[1].tp25);
+  EXPECT_EQ(candidates[1].support, 12);
+  EXPECT_FALSE(candidates[1].verified);
+}
+
 TEST(EvalMapping, SpecReplacesOneEntryAndRejectsMalformedText) {
   CategoryMapping mapping = defaultCategoryMapping();
   addCategoryMapping(mapping, "couch=sofa|couch");
