@@ -255,12 +255,16 @@ int main(int argc, char** argv) {
       std::cerr << "ism-train: --calibration-samples: cannot write " << samples_path << '\n';
       return 2;
     }
-    samples_file << "draw\tcategory\tpositive\tscore\tsupport\tfit\tprofile_distance\tcloud\tfold\n";
+    samples_file << "draw\tcategory\tpositive\tscore\tsupport\tfit\tprofile_distance\tcloud\tfold\tconfidence\n";
     params.calibration_samples = [&](const ism::Model& model, const std::vector<ism::CalibrationSample>& samples) {
       for (const auto& x : samples) {
-        samples_file << draw << '\t' << model.categories[static_cast<size_t>(x.category)].name << '\t' << x.positive
-                     << '\t' << x.score << '\t' << x.support << '\t' << x.fit << '\t' << x.profile_distance << '\t'
-                     << x.cloud << '\t' << x.fold << '\n';
+        const ism::CategoryModel& category = model.categories[static_cast<size_t>(x.category)];
+        // The confidence its category's curve gives it; empty where the category has none.
+        const auto& curve = x.cloud ? category.cloud_calibration : category.calibration;
+        samples_file << draw << '\t' << category.name << '\t' << x.positive << '\t' << x.score << '\t' << x.support
+                     << '\t' << x.fit << '\t' << x.profile_distance << '\t' << x.cloud << '\t' << x.fold << '\t';
+        if (curve) samples_file << curve->confidence(x.score, x.support, x.fit, x.profile_distance);
+        samples_file << '\n';
       }
       ++draw;
     };

@@ -591,7 +591,6 @@ std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::v
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
                const TrainingParams& params) {
   const std::vector<CalibrationSample> samples = calibrationSamples(model, scans, objects, params);
-  if (params.calibration_samples) params.calibration_samples(model, samples);
   const size_t categories = model.categories.size();
   // A flat-topped category's box is the top the scene measured (top_extent.h), not its fitted
   // shape's: tables come in every length and carry what stands on and under them, so the profile
@@ -652,6 +651,7 @@ void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::
       if (params.progress) params.progress(line.str());
     }
   }
+  if (params.calibration_samples) params.calibration_samples(model, samples);
 }
 
 }  // namespace ism

@@ -150,8 +150,9 @@ struct TrainingParams {
   int threads = 0;  // 0 = all cores
   // Progress lines ("scanning couch 3/5 ...") with timings; may be empty.
   std::function<void(const std::string&)> progress;
-  // Given the calibration's labelled peaks before they are fitted (ism-train --calibration-samples,
-  // which tests/eval/domain_gap.py sets beside the real scans' candidates); may be empty.
+  // Given the calibration's labelled peaks and the model with the curves fitted to them
+  // (ism-train --calibration-samples, which tests/eval/domain_gap.py sets beside the real scans'
+  // candidates); may be empty.
   std::function<void(const Model&, const std::vector<CalibrationSample>&)> calibration_samples;
   std::string command;  // recorded in provenance
 };

@@ -79,6 +79,7 @@ class EndToEnd : public ::testing::Test {
     params.progress = [](const std::string& line) { std::cout << "  [train] " << line << '\n'; };
     params.calibration_samples = [](const Model& model, const std::vector<CalibrationSample>& samples) {
       ++sample_calls_;
+      for (const auto& c : model.categories) curves_at_call_ += c.calibration.has_value() + c.cloud_calibration.has_value();
       for (const auto& x : samples) {
         sample_counts_[model.categories[static_cast<size_t>(x.category)].name][x.cloud][x.positive] += 1;
       }
@@ -126,13 +127,14 @@ class EndToEnd : public ::testing::Test {
   static fs::path dir_;
   static Model* model_;
   // What TrainingParams::calibration_samples was given: per category, [cloud][positive] counts.
-  static int sample_calls_;
+  static int sample_calls_, curves_at_call_;
   static std::map<std::string, std::array<std::array<int, 2>, 2>> sample_counts_;
 };
 
 fs::path EndToEnd::dir_;
 Model* EndToEnd::model_ = nullptr;
 int EndToEnd::sample_calls_ = 0;
+int EndToEnd::curves_at_call_ = 0;
 std::map<std::string, std::array<std::array<int, 2>, 2>> EndToEnd::sample_counts_;
 
 TEST_F(EndToEnd, ModelKeepsProvenance) {
@@ -154,9 +156,10 @@ TEST_F(EndToEnd, CalibratedOnFramesAndOnPointSamples) {
 }
 
 // ism-train --calibration-samples writes what the calibration was fitted to: the peaks each curve
-// counts, no more and no fewer.
+// counts, no more and no fewer, once the curves are fitted (it writes each peak's confidence).
 TEST_F(EndToEnd, TheCalibrationsSamplesAreHandedOutAsFitted) {
   EXPECT_EQ(sample_calls_, 1);
+  EXPECT_EQ(curves_at_call_, 2 * static_cast<int>(model_->categories.size()));
   for (const auto& c : model_->categories) {
     const auto& counts = sample_counts_[c.name];
     EXPECT_EQ(counts[0][1], c.calibration->positives) << c.name;

@@ -12,8 +12,10 @@ true and the false peaks of each, with their counts.
   /usr/bin/python3 tests/eval/domain_gap.py ROOMS.tsv REAL.json [--frames] [--draw N]
 
 By default the rooms seen as point samples are compared (the clouds' calibration); --frames takes
-the rooms' depth frames (for the Kinect frames' candidates). A candidate that was not verified
-counts with fit 0.5, as the calibration weighs it.
+the rooms' depth frames (for the Kinect frames' candidates). The rooms' peaks are those whose
+confidence reaches --lowest (0.01, below which recognition answers nothing and ism-eval lists no
+candidate), so that both sides are the same population. A candidate that was not verified counts
+with fit 0.5, as the calibration weighs it.
 """
 import argparse
 import csv
@@ -37,12 +39,15 @@ def main():
     ap.add_argument("real", nargs="+", help="ism-eval real --json output(s)")
     ap.add_argument("--frames", action="store_true", help="the rooms' depth frames, not their point samples")
     ap.add_argument("--draw", type=int, default=0, help="which draw's samples (ism-train --draws)")
+    ap.add_argument("--lowest", type=float, default=0.01, help="the rooms' peaks from this confidence up")
     args = ap.parse_args()
 
     rooms = {}
     with open(args.samples) as f:
         for row in csv.DictReader(f, delimiter="\t"):
             if int(row["draw"]) != args.draw or int(row["cloud"]) == int(args.frames):
+                continue
+            if not row["confidence"] or float(row["confidence"]) < args.lowest:
                 continue
             key = (row["category"], row["positive"] == "1")
             rooms.setdefault(key, []).append((float(row["score"]), int(row["support"]), float(row["fit"])))
