@@ -222,7 +222,8 @@ struct ClassScore {
   struct Candidate {
     std::string scene, category;
     bool tp25 = false;
-    float confidence = 0, score = 0;
+    float confidence = 0;  // what ranks the class's detections (rankingScore)
+    float score = 0;
     int support = 0;
     bool verified = false;
     float fit = 0, profile_distance = 0;  // when verified
@@ -255,9 +256,8 @@ class ClassScorer {
     std::vector<std::string> model_categories;
     int objects = 0, tp = 0, fp = 0, scenes = 0, tp25 = 0, fp25 = 0;
     std::vector<std::pair<float, bool>> ranked;  // counted detections: merged FPs count once
-    std::vector<std::pair<float, bool>> ranked25;  // every detection, by 3D IoU
     std::vector<ClassScore::ObjectOutcome> outcomes;
-    std::vector<ClassScore::Candidate> candidates;
+    std::vector<ClassScore::Candidate> candidates;  // every detection, by 3D IoU (ranked25)
   };
   std::vector<Class> classes_;
   std::map<std::string, float> radius_;  // model category -> 1/4 of its maximum box edge

@@ -295,12 +295,18 @@ std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& o
       boxes.push_back({to_gravity * o.center, o.size, o.yaw});
     }
     std::vector<ScoredDetection> detections, all;
-    std::vector<const Hypothesis*> of_all;
+    const size_t first = c.candidates.size();  // this scene's detections are appended from here
     for (const Hypothesis& h : hypotheses) {
       if (!h.passed_selection || !contains(c.model_categories, h.category)) continue;
       all.push_back({rankingScore(h), h.support_centroid, radius_.at(h.category), uprightBoxOf(h.box, to_gravity)});
-      of_all.push_back(&h);
       if (h.confidence >= min_confidence) detections.push_back(all.back());
+      ClassScore::Candidate candidate{scene_name, h.category, false, all.back().score, h.score, h.support};
+      if (h.verification) {
+        candidate.verified = true;
+        candidate.fit = h.verification->fit();
+        candidate.profile_distance = h.verification->profile_distance;
+      }
+      c.candidates.push_back(std::move(candidate));
     }
     const auto by_iou = matchDetectionsByIou(all, boxes, 0.25f);
     for (const UprightBox& box : boxes) {
@@ -313,15 +319,7 @@ std::array<int, 3> ClassScorer::addScene(const std::vector<GroundTruthObject>& o
       c.outcomes.push_back(outcome);
     }
     for (size_t d = 0; d < all.size(); ++d) {
-      c.ranked25.emplace_back(all[d].score, by_iou[d]);
-      const Hypothesis& h = *of_all[d];
-      ClassScore::Candidate candidate{scene_name, h.category, by_iou[d], h.confidence, h.score, h.support};
-      if (h.verification) {
-        candidate.verified = true;
-        candidate.fit = h.verification->fit();
-        candidate.profile_distance = h.verification->profile_distance;
-      }
-      c.candidates.push_back(std::move(candidate));
+      c.candidates[first + d].tp25 = by_iou[d];
       if (all[d].score >= min_confidence) (by_iou[d] ? c.tp25 : c.fp25) += 1;
     }
     c.scenes += 1;
@@ -356,11 +354,11 @@ std::vector<ClassScore> ClassScorer::scores() const {
     score.scenes = c.scenes;
     score.rate = ratio(c.tp, c.objects + c.fp);
     score.ap = averagePrecision(c.ranked, c.objects);
-    score.ap25 = averagePrecision(c.ranked25, c.objects);
+    for (const auto& d : c.candidates) score.ranked25.emplace_back(d.confidence, d.tp25);
+    score.ap25 = averagePrecision(score.ranked25, c.objects);
     score.tp25 = c.tp25;
     score.fp25 = c.fp25;
-    score.pr25 = precisionRecall(c.ranked25, c.objects);
-    score.ranked25 = c.ranked25;
+    score.pr25 = precisionRecall(score.ranked25, c.objects);
     std::stable_sort(score.ranked25.begin(), score.ranked25.end(),
                      [](const auto& a, const auto& b) { return a.first > b.first; });
     score.outcomes = c.outcomes;

@@ -66,12 +66,11 @@ def main():
     print("| category | rooms, true | real, true | rooms, false | real, false | false per true: rooms, real |")
     print("|---|---|---|---|---|---|")
     for category in categories:
-        counts = [len(rooms.get((category, True), [])), len(rooms.get((category, False), [])),
-                  len(real.get((category, True), [])), len(real.get((category, False), []))]
-        ratio = ", ".join(f"{n / p:.0f}" if p else "-" for p, n in ((counts[0], counts[1]), (counts[2], counts[3])))
-        print(f"| {category} | {medians(rooms.get((category, True), []))} | {medians(real.get((category, True), []))} "
-              f"| {medians(rooms.get((category, False), []))} | {medians(real.get((category, False), []))} | {ratio} |")
-
+        groups = [rooms.get((category, True), []), real.get((category, True), []),
+                  rooms.get((category, False), []), real.get((category, False), [])]
+        ratio = ", ".join(f"{len(false) / len(true):.0f}" if true else "-"
+                          for true, false in ((groups[0], groups[2]), (groups[1], groups[3])))
+        print("| " + " | ".join([category] + [medians(g) for g in groups] + [ratio]) + " |")
 
 if __name__ == "__main__":
     main()
