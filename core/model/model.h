@@ -123,6 +123,9 @@ struct TrainingObject {
   // Points on the mesh's surface as placed (its box centred on x = y = 0, standing on z = 0), in
   // random order so that any prefix is an even sample: what verification fits to the scene.
   std::vector<Eigen::Vector3f> surface;
+  // Sized to its category's typical size, its own unknown (MeshPlacement::size_guessed): the
+  // footprint prior (top_extent.h) leaves it out.
+  bool size_guessed = false;
 };
 
 // A category's confidence for a peak of score s gathered from n supporting keypoints, whose

@@ -376,7 +376,7 @@ Model fromProto(const v1::ModelData& in, const std::string& source) {
     cat.box = {b.min_volume(), b.max_volume(), b.max_edge(), b.mean_volume(), b.std_volume(), b.mean_max_edge(),
                b.std_max_edge()};
     for (const auto& o : c.objects()) {
-      TrainingObject object{{o.width(), o.depth(), o.height()}, o.center_height(), {}};
+      TrainingObject object{{o.width(), o.depth(), o.height()}, o.center_height(), {}, o.size_guessed()};
       if (!(object.size.allFinite() && (object.size.array() > 0).all() && std::isfinite(object.center_height))) {
         r.fail(where + " has a training object with a size that is not positive");
       }
@@ -520,6 +520,7 @@ void toProto(const Model& model, v1::ModelData& data) {
       object->set_depth(o.size.y());
       object->set_height(o.size.z());
       object->set_center_height(o.center_height);
+      object->set_size_guessed(o.size_guessed);
       for (const auto& p : o.surface) {
         object->add_surface(p.x());
         object->add_surface(p.y());

@@ -54,9 +54,10 @@ TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, con
 
 // The footprint prior of a flat-topped category: whether the narrow side of the hypothesis' upright
 // box (in the frame of `to_gravity`) lies within the narrow sides of the category's training
-// objects, give or take `slack` (m). The narrow side only: a table's depth is bounded by the reach
-// across it, and the beds that voting takes for tables are deeper than any table, while desks and
-// dining tables come in any length.
+// objects whose size was given (TrainingObject::size_guessed; none: no prior), give or take `slack`
+// (m). The narrow side only: a table's depth is bounded by the reach across it, and the beds that
+// voting takes for tables are deeper than any table, while desks and dining tables come in any
+// length.
 bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
                           float slack);
 

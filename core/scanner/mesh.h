@@ -34,6 +34,9 @@ struct MeshPlacement {
   // footprint's longer side against the longer given one, since a mesh's front is not known);
   // else the height's ratio, or the first given extent's.
   bool uniform = false;
+  // Whether `size` is a guess (the category's typical size, for a mesh that came without one)
+  // rather than the object's: it then says nothing about the sizes the category comes in.
+  bool size_guessed = false;
 };
 
 // Returns the mesh +z up, scaled, its bounding box centred on x=y=0 and standing on z=0.

@@ -89,6 +89,10 @@ int main(int argc, char** argv) {
   bool no_bare_floor = false;
   app.add_flag("--no-bare-floor", no_bare_floor,
                "default preset: keep hypotheses with bare floor in the middle of their footprint");
+  bool no_footprint_prior = false;
+  app.add_flag("--no-footprint-prior", no_footprint_prior,
+               "default preset: keep tables whose measured top is deeper or shallower than every training table's "
+               "of given size");
   bool no_under_top = false;
   app.add_flag("--no-under-top", no_under_top,
                "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
@@ -136,6 +140,7 @@ int main(int argc, char** argv) {
     options.box_selection = !no_box_selection;
     options.verify = !no_verify;
     options.scene_checks.top_extent.enabled = !no_top_extent;
+    options.scene_checks.top_extent.footprint_prior = !no_footprint_prior;
     options.scene_checks.seat_run.enabled = !no_seat_run;
     options.scene_checks.open_top.enabled = !no_open_top;
     if (no_upper_part) options.scene_checks.open_top.min_upper = 0;

@@ -167,7 +167,7 @@ int main(int argc, char** argv) {
                   "(top_extent.h)");
     sub->add_flag("--no-footprint-prior", no_footprint_prior,
                   "default preset: keep tables whose measured top is deeper or shallower than every training table's "
-                  "(top_extent.h)");
+                  "of given size (top_extent.h)");
   }
   std::string preset = "default";
   float min_confidence = 0.5f;

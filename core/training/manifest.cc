@@ -89,6 +89,7 @@ std::vector<TrainingMesh> readManifest(const std::string& path) {
       // Unknown proportions: the mesh's own, at the scale that best fits the category's typical size.
       mesh.placement.size = defaultCategorySize(mesh.category);
       mesh.placement.uniform = true;
+      mesh.placement.size_guessed = true;
     }
     const std::string up = field("up");
     if (up == "z" || up == "Z") {
@@ -138,6 +139,7 @@ std::vector<TrainingMesh> meshesFromFolders(const std::string& root) {
       mesh.path = file.string();
       mesh.placement.size = defaultCategorySize(category);
       mesh.placement.uniform = true;
+      mesh.placement.size_guessed = true;
       meshes.push_back(std::move(mesh));
     }
   }

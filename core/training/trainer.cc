@@ -178,7 +178,10 @@ CategoryModel categoryModel(const std::string& name, const CategoryScans& catego
   if (sized) {
     model.objects.resize(static_cast<size_t>(category.models));
     for (const auto* s : category.scans) {
-      model.objects[static_cast<size_t>(s->model_index)] = {s->object_size, s->object_center.z()};
+      TrainingObject& object = model.objects[static_cast<size_t>(s->model_index)];
+      object.size = s->object_size;
+      object.center_height = s->object_center.z();
+      object.size_guessed = s->size_guessed;
     }
   }
   return model;
@@ -427,6 +430,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
     scan.model_index = model_index[static_cast<size_t>(m)];
     scan.object_center = bounds[static_cast<size_t>(m)].center();
     scan.object_size = bounds[static_cast<size_t>(m)].sizes();
+    scan.size_guessed = mesh.placement.size_guessed;
     Scene scene = depthImageToWorldScene(depth, source);
     scene.up = Eigen::Vector3f::UnitZ();  // meshes are placed upright on z = 0
     if (params.fused.enabled) {
@@ -472,6 +476,7 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
       scan.model_index = model_index[mi];
       scan.object_center = bounds[mi].center();
       scan.object_size = bounds[mi].sizes();
+      scan.size_guessed = meshes[mi].placement.size_guessed;
       describeScan(scene, params, scan);
     });
     for (auto& f : fused) scans.push_back(std::move(f));

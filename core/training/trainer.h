@@ -175,6 +175,7 @@ struct TrainingScan {
   Features features;
   Eigen::Vector3f object_center;  // true centre (world frame)
   Eigen::Vector3f object_size = Eigen::Vector3f::Zero();  // its box: width (x), depth (y), height (z)
+  bool size_guessed = false;  // MeshPlacement::size_guessed
   OrientedBox keypoint_box;
 };
 

@@ -40,10 +40,12 @@ TEST_F(TrainingFiles, ReadsAManifest) {
   EXPECT_EQ(meshes[0].placement.up, UpAxis::kZ);
   EXPECT_EQ(meshes[0].placement.pre_rotation(0, 0), -1.0f);
   EXPECT_EQ(meshes[0].credit, "someone, CC-BY");
+  EXPECT_FALSE(meshes[0].placement.size_guessed);
   EXPECT_EQ(meshes[1].path, "/abs/chair.off");
   EXPECT_EQ(meshes[1].placement.up, UpAxis::kY);
   EXPECT_TRUE(meshes[1].placement.uniform);  // no size given: own proportions, fitted to the typical size
   EXPECT_TRUE(meshes[1].placement.size.isApprox(defaultCategorySize("dining_chair")));
+  EXPECT_TRUE(meshes[1].placement.size_guessed);
 }
 
 TEST_F(TrainingFiles, ManifestErrorsNameTheLine) {
@@ -71,6 +73,7 @@ TEST_F(TrainingFiles, FindsMeshesInCategoryFolders) {
   EXPECT_EQ(fs::path(meshes[0].path).filename(), "a.OFF");
   EXPECT_EQ(meshes[2].category, "dining_table");
   EXPECT_EQ(meshes[2].placement.size.z(), defaultCategorySize("dining_table").z());
+  EXPECT_TRUE(meshes[2].placement.size_guessed);
   write("spaceship/s.obj", "");
   EXPECT_THROW(meshesFromFolders(dir.string()), Error);  // no size known for it
 }

@@ -46,7 +46,8 @@ Model sampleModel() {
     c.training_models = 3;
     c.training_scans = 36;
     for (int o = 0; o < 3; ++o) {
-      c.objects.push_back({Eigen::Vector3f(0.5f + o, 0.6f, 0.9f), 0.45f, {Eigen::Vector3f(0.1f * o, 0.2f, 0.3f), Eigen::Vector3f::Random()}});
+      c.objects.push_back({Eigen::Vector3f(0.5f + o, 0.6f, 0.9f), 0.45f, {Eigen::Vector3f(0.1f * o, 0.2f, 0.3f), Eigen::Vector3f::Random()},
+                           o == 1});
     }
     Calibration calibration;
     calibration.a = 1.5f;
@@ -133,6 +134,7 @@ TEST_F(ModelFileTest, RoundTripKeepsEveryField) {
       EXPECT_EQ(b.objects[o].size, a.objects[o].size);
       EXPECT_EQ(b.objects[o].center_height, a.objects[o].center_height);
       EXPECT_EQ(b.objects[o].surface, a.objects[o].surface);
+      EXPECT_EQ(b.objects[o].size_guessed, a.objects[o].size_guessed);
     }
     ASSERT_TRUE(b.calibration);
     EXPECT_EQ(b.calibration->d, 3.5f);

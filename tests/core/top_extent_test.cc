@@ -150,6 +150,18 @@ TEST(TopExtent, TheFootprintPriorBoundsATopsDepthNotItsLength) {
   EXPECT_FALSE(withinFootprintPrior(top(2.2f, 1.6f, 0.0f), tables, up, 0.3f)) << "a double bed's top";
   EXPECT_FALSE(withinFootprintPrior(top(1.6f, 0.35f, 0.0f), tables, up, 0.3f)) << "a shelf";
   EXPECT_TRUE(withinFootprintPrior(top(1.6f, 0.8f, 0.0f), CategoryModel{}, up, 0.3f)) << "no objects, no prior";
+
+  // Tables scaled to the typical box (meshes without a size) bound nothing: a square table 1.3 m
+  // across passes, as does a bed, and beside a table of given size only that table's depth counts.
+  CategoryModel guessed = tables;
+  for (auto& o : guessed.objects) o.size_guessed = true;
+  EXPECT_TRUE(withinFootprintPrior(top(1.3f, 1.3f, 0.0f), guessed, up, 0.3f));
+  EXPECT_TRUE(withinFootprintPrior(top(2.2f, 1.6f, 0.0f), guessed, up, 0.3f));
+  CategoryModel mixed = tables;
+  mixed.objects[1].size_guessed = true;  // the square one: only 0.7 m deep counts
+  EXPECT_FALSE(withinFootprintPrior(top(1.6f, 1.2f, 0.0f), mixed, up, 0.3f));
+  EXPECT_TRUE(withinFootprintPrior(top(1.6f, 0.9f, 0.0f), mixed, up, 0.3f));
+  EXPECT_TRUE(withinFootprintPrior(top(1.6f, 1.2f, 0.0f), tables, up, 0.3f));
 }
 
 TEST(TopExtent, TablesAreFlatToppedChairsAndCouchesAreNot) {

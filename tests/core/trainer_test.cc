@@ -135,6 +135,23 @@ TEST(TrainFromScans, ABalancedCodebookClustersAsManyDescriptorsOfEachCategory) {
             0u);
 }
 
+// The footprint prior (top_extent.h) looks only at objects whose size was given.
+TEST(TrainFromScans, ObjectsKeepWhetherTheirSizeWasAGuess) {
+  std::vector<TrainingScan> scans = handMadeScans("stool", 1);
+  const auto more = handMadeScans("bed", 2);
+  scans.insert(scans.end(), more.begin(), more.end());
+  for (auto& s : scans) {
+    s.object_size = {0.4f, 0.4f, 0.6f};
+    s.size_guessed = s.category == "bed";
+  }
+  const Model model = trainFromScans(scans, {"stool", "bed"}, smallParams());
+  ASSERT_EQ(model.categories.size(), 2u);
+  for (const auto& c : model.categories) {
+    ASSERT_EQ(c.objects.size(), static_cast<size_t>(kModels)) << c.name;
+    for (const auto& o : c.objects) EXPECT_EQ(o.size_guessed, c.name == "bed") << c.name;
+  }
+}
+
 TEST(TrainFromScans, NeedsTwoModelsPerCategory) {
   std::vector<TrainingScan> scans = handMadeScans("stool", 1);
   for (auto& s : scans) s.model_index = 0;
@@ -152,9 +169,11 @@ TEST(ScanMeshes, AFusedScanSurroundsTheObject) {
   TrainingMesh mesh;
   mesh.category = "office_chair";
   mesh.path = "procedural office chair";
+  mesh.placement.size_guessed = true;
   const std::vector<Mesh> placed{syntheticFurniture("office_chair", 0)};
   const std::vector<TrainingScan> scans = scanMeshes({mesh}, placed, params);
   ASSERT_EQ(scans.size(), 5u) << "4 views, then the fused scan";
+  for (const auto& s : scans) EXPECT_TRUE(s.size_guessed) << "each scan says its mesh's size was a guess";
   const TrainingScan& fused = scans.back();
   EXPECT_FALSE(fused.features.organized);
   EXPECT_EQ(fused.model_index, 0);
