@@ -3,6 +3,7 @@
 // per category the votes stored under each codeword, detection thresholds and box statistics.
 // Saved as the versioned Protobuf format of proto/ism/v1/model.proto (model_file.h).
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <optional>
 #include <string>
@@ -164,18 +165,24 @@ struct CategoryModel {
   std::optional<Calibration> cloud_calibration;
 };
 
-// Whether `value` lies within the range `of_object` takes over the category's training objects,
-// give or take `slack`: recognition's priors from the training meshes. True without objects
-// (a model written before they were kept has nothing to bound it by).
-template <typename OfObject>
-bool withinTrainingRange(const CategoryModel& category, OfObject of_object, float value, float slack) {
-  if (category.objects.empty()) return true;
-  float lo = of_object(category.objects.front()), hi = lo;
+// Whether `value` lies within the range `of_object` takes over the category's training objects
+// that `counts` admits (all by default), give or take `slack`: recognition's priors from the
+// training meshes. True without such objects (a model written before they were kept has nothing
+// to bound it by).
+template <typename OfObject, typename Counts>
+bool withinTrainingRange(const CategoryModel& category, OfObject of_object, float value, float slack, Counts counts) {
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
   for (const auto& o : category.objects) {
+    if (!counts(o)) continue;
     lo = std::min(lo, of_object(o));
     hi = std::max(hi, of_object(o));
   }
+  if (lo > hi) return true;
   return value >= lo - slack && value <= hi + slack;
+}
+template <typename OfObject>
+bool withinTrainingRange(const CategoryModel& category, OfObject of_object, float value, float slack) {
+  return withinTrainingRange(category, of_object, value, slack, [](const TrainingObject&) { return true; });
 }
 
 struct Provenance {

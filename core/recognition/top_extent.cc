@@ -136,15 +136,9 @@ bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& cat
   // one (the seed's three PSB tables came out 0.80-0.91 m deep), so their range tells the typical
   // size back, not the sizes tables come in, and a square test table of the same collection fell
   // outside it (docs/EVALUATION.md, "The seed's baseline on synthetic scans").
-  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
-  for (const auto& o : category.objects) {
-    if (o.size_guessed) continue;
-    lo = std::min(lo, narrow(o.size));
-    hi = std::max(hi, narrow(o.size));
-  }
-  if (lo > hi) return true;  // no object of a given size: no prior
-  const float value = narrow(uprightBoxOf(hypothesis.box, to_gravity).size);
-  return value >= lo - slack && value <= hi + slack;
+  return withinTrainingRange(category, [&](const TrainingObject& o) { return narrow(o.size); },
+                             narrow(uprightBoxOf(hypothesis.box, to_gravity).size), slack,
+                             [](const TrainingObject& o) { return !o.size_guessed; });
 }
 
 TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
