@@ -185,11 +185,17 @@ TEST_F(Tools, DetectOptionsShapeTheAnswers) {
   EXPECT_LT(strict.size(), all.size());
 }
 
-TEST_F(Tools, EvalNamesWhatIsMissing) {
+TEST_F(Tools, EvalNamesWhatIsMissingOrMalformed) {
   expectRefused(run("ism-eval", {"real", "-m", kModel, (dir_ / "nowhere").string()}),
                 {"ism-eval: not found", "no ground truth", "nowhere.json"});
   fs::create_directories(dir_ / "empty");
   expectRefused(run("ism-eval", {"real", "-m", kModel, (dir_ / "empty").string()}), {"not found", "holds no scene"});
+  // A scene whose ground truth is malformed: the file and the field.
+  fs::create_directories(dir_ / "scenes");
+  file("scenes/s.pcd", kTinyPcd);
+  file("scenes/s.json", R"({"objects": [{"category": "chair", "center": [1, 2]}]})");
+  expectRefused(run("ism-eval", {"real", "-m", kModel, (dir_ / "scenes").string()}),
+                {"invalid input", "s.json", "objects[0]", "\"center\""});
 }
 
 TEST_F(Tools, TrainNamesWhatIsWrongWithTheManifest) {
