@@ -55,7 +55,7 @@ FrontEndResult extractFeatures(const Scene& scene, const FrontEndParams& params,
     // is made up (viewpoint.h), so its planes are not tested for it, as verification checks maps
     // without free space (VerificationParams::maps_in_3d).
     GravityParams gravity = params.gravity;
-    if (gravity.wall_max_seen_through > 0 && scene.image_width == 0 && surrounds(*scene.cloud, scene.sensor_origin)) {
+    if (gravity.wall_max_seen_through > 0 && isMap(scene)) {
       gravity.wall_max_seen_through = 0;
     }
     GravityResult found = estimateGravity(positions, scene.sensor_origin, sensor_up, scene.up, gravity);

@@ -69,6 +69,10 @@ bool surrounds(const Cloud& cloud, const Eigen::Vector3f& viewpoint, const Viewp
   return !cloud.empty() && spreadAbout(cloud, viewpoint, params).map;
 }
 
+bool isMap(const Scene& scene, const ViewpointParams& params) {
+  return scene.cloud && scene.image_width == 0 && surrounds(*scene.cloud, scene.sensor_origin, params);
+}
+
 bool facesItsPoints(const Scene& scene) {
   if (!scene.cloud || scene.cloud->empty()) return true;
   const Eigen::Matrix3f to_sensor = scene.sensor_orientation.normalized().toRotationMatrix().transpose();

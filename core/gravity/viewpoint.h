@@ -39,6 +39,11 @@ std::optional<MapView> mapViewpoint(const Scene& scene, const ViewpointParams& p
 // more than params.outside_fraction of them beyond max_view_angle_deg of their mean direction.
 bool surrounds(const Cloud& cloud, const Eigen::Vector3f& viewpoint, const ViewpointParams& params = {});
 
+// Whether `scene` is a map as recognition sees it (after lookedAt): an unorganized cloud whose
+// points surround its sensor origin. Its viewpoint is made up, so what a sensor would have seen
+// through is not known (frontend.h, verification.h).
+bool isMap(const Scene& scene, const ViewpointParams& params = {});
+
 // Whether at least half of the points lie in front of the sensor (+z of its optical frame, turned
 // by its orientation). A depth image's points all do; some files' pose says otherwise (PCL's test
 // frames such as office1.pcd carry a VIEWPOINT turned 180 degrees about x while their points are

@@ -378,7 +378,7 @@ VerificationScene makeVerificationScene(const Scene& scene, const std::optional<
   for (size_t i = 0; i < n; i += stride) {
     out.points.push_back(out.to_gravity * ((*scene.cloud)[i].getVector3fMap() - out.origin));
   }
-  if (params.maps_in_3d && scene.image_width == 0 && surrounds(*scene.cloud, scene.sensor_origin)) {
+  if (params.maps_in_3d && isMap(scene)) {
     out.map = true;
     out.near = NearGrid(out.points, kNearCell);
   }

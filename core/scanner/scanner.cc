@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <unordered_map>
 
 #include "core/common/error.h"
 #include "core/io/depth_png.h"
@@ -322,6 +323,32 @@ Scene depthImageToWorldScene(const DepthImage& image, const std::string& source)
   }
   scene.cloud->sensor_origin_ << scene.sensor_origin, 0.0f;
   scene.cloud->sensor_orientation_ = scene.sensor_orientation;
+  return scene;
+}
+
+Scene fusedCloud(const std::vector<Eigen::Vector3f>& points, float spacing, const Eigen::Vector3f& viewpoint,
+                 const std::string& source) {
+  if (!(spacing > 0)) throw Error(ErrorCode::kInvalidInput, source + ": fusion spacing must be > 0");
+  std::unordered_map<uint64_t, std::pair<Eigen::Vector3f, int>> cells;
+  const auto cell = [&](float x) {
+    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x / spacing)) + (1 << 20));
+  };
+  for (const auto& p : points) {
+    auto& c = cells.try_emplace((cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z()), Eigen::Vector3f::Zero(), 0)
+                  .first->second;
+    c.first += p;
+    ++c.second;
+  }
+  Scene scene;
+  scene.source = source;
+  scene.sensor_origin = viewpoint;
+  scene.up = Eigen::Vector3f::UnitZ();
+  for (const auto& [key, c] : cells) {
+    PointT point;
+    point.getVector3fMap() = c.first / static_cast<float>(c.second);
+    scene.cloud->push_back(point);
+  }
+  scene.cloud->sensor_origin_ << viewpoint, 0.0f;
   return scene;
 }
 

@@ -71,6 +71,10 @@ DepthImage renderDepth(const std::vector<const Mesh*>& meshes, const Eigen::Isom
 
 // Depth image -> scene in world coordinates, organized, sensor origin = camera position.
 Scene depthImageToWorldScene(const DepthImage& image, const std::string& source);
+// Points of several views fused into a map: averaged per `spacing` cube (a TSDF averages the
+// views' noise alike), no image grid, up +z, seen from `viewpoint`.
+Scene fusedCloud(const std::vector<Eigen::Vector3f>& points, float spacing, const Eigen::Vector3f& viewpoint,
+                 const std::string& source);
 // Depth in metres -> 16-bit PNG (units per metre as given), for the sample scene and tests.
 void saveDepthPng(const DepthImage& image, float units_per_metre, const std::string& path);
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <numeric>
 #include <optional>
 #include <random>
 #include <set>
@@ -14,6 +15,7 @@
 #include "core/common/error.h"
 #include "core/common/upright_box.h"
 #include "core/frontend/frontend.h"
+#include "core/gravity/viewpoint.h"
 #include "core/recognition/recognizer.h"
 #include "core/recognition/scene_checks.h"
 #include "core/recognition/suppression.h"
@@ -178,7 +180,53 @@ CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& f
   scene.noise = noise;  // the training scans' sensor
   scene.noise.seed = static_cast<uint32_t>(rng());
   room.scene = composeScene(objects, scene);
+  room.objects = std::move(objects);
+  room.view = scene;
   return room;
+}
+
+Scene calibrationMap(const CalibrationRoom& room, const CalibrationParams& params, std::mt19937& rng) {
+  std::uniform_real_distribution<float> unit(0.0f, 1.0f);
+  const auto uniform = [&](float lo, float hi) { return lo + (hi - lo) * unit(rng); };
+  // The room composeCalibrationRoom builds: its furniture and clutter within 1.6 x 1.2 m of the
+  // middle, the far wall at y = 2.2 m, the side wall (where there is one) at x = -3.4 m.
+  const auto inside = [](const Eigen::Vector3f& p) { return std::abs(p.x()) <= 3.5f && p.y() >= -3.0f && p.y() <= 2.3f; };
+  std::vector<Eigen::Vector3f> points;
+  const int views = std::max(1, params.map_views);
+  const float start = uniform(-3.1416f, 3.1416f);
+  for (int v = 0; v < views; ++v) {
+    // Walking around the furniture, beyond its footprint, looking at it.
+    const float azimuth = start + 6.2832f * static_cast<float>(v) / static_cast<float>(views) + uniform(-0.3f, 0.3f);
+    const float distance = uniform(2.0f, 3.0f);
+    SyntheticSceneParams view = room.view;
+    view.camera_eye = {std::max(distance * std::cos(azimuth), -3.2f), std::min(distance * std::sin(azimuth), 2.0f),
+                       uniform(1.0f, 1.8f)};
+    view.camera_target = {uniform(-1.0f, 1.0f), uniform(-0.8f, 0.8f), uniform(0.2f, 0.6f)};
+    view.noise.seed = static_cast<uint32_t>(rng());
+    const SyntheticScene seen = composeScene(room.objects, view);
+    for (const auto& p : seen.scene.cloud->points) {
+      if (inside(p.getVector3fMap())) points.push_back(p.getVector3fMap());
+    }
+  }
+  Scene map = fusedCloud(points, params.map_spacing, Eigen::Vector3f::Zero(), "calibration room (map)");
+  const float lo = std::log(static_cast<float>(std::max(1, params.map_points_min)));
+  const float hi = std::log(static_cast<float>(std::max(params.map_points_min, params.map_points_max)));
+  const auto wanted = static_cast<size_t>(std::exp(uniform(lo, hi)));
+  if (map.cloud->size() > wanted) {
+    Cloud::Ptr kept(new Cloud);
+    kept->reserve(wanted);
+    std::vector<size_t> order(map.cloud->size());
+    std::iota(order.begin(), order.end(), size_t{0});
+    std::shuffle(order.begin(), order.end(), rng);
+    order.resize(wanted);
+    std::sort(order.begin(), order.end());
+    for (const size_t i : order) kept->push_back((*map.cloud)[i]);
+    map.cloud = kept;
+  }
+  // No pose, as a map is sent: recognition makes up its viewpoint (lookedAt).
+  map.sensor_origin = Eigen::Vector3f::Zero();
+  map.cloud->sensor_origin_.setZero();
+  return map;
 }
 
 std::string categoryKind(const std::string& category) {
@@ -364,6 +412,10 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
         const float fraction = std::exp(lo + (hi - lo) * std::uniform_real_distribution<float>(0.0f, 1.0f)(rng));
         const Scene sample = pointSample(room.scene.scene, fraction, rng);
         if (sample.cloud->size() >= 100) look(sample, true);
+      }
+      if (cp.maps) {  // drawn after the frame's and the point sample's, which stay as they were
+        const Scene map = lookedAt(calibrationMap(room, cp, rng));
+        if (map.cloud->size() >= 100 && isMap(map)) look(map, true);
       }
       for (auto& s : found) s.fold = fold;
       std::lock_guard<std::mutex> lock(mutex);

@@ -35,6 +35,8 @@ struct PlacedObject {
 struct CalibrationRoom {
   SyntheticScene scene;
   std::vector<std::string> categories;  // of scene.objects, furniture first, then clutter ("")
+  std::vector<SceneObject> objects;     // what stands in it, walls and floor aside, as scene shows them
+  SyntheticSceneParams view;            // scene's camera and sensor
 };
 
 // Up to params.max_objects of `furniture` (the fold's held-out objects) standing apart on the
@@ -48,6 +50,12 @@ CalibrationRoom composeCalibrationRoom(const std::vector<const PlacedObject*>& f
                                        const CalibrationParams& params, const NoiseParams& noise, std::mt19937& rng,
                                        const std::vector<const PlacedObject*>& tables = {});
 
+// The room as a robot's mapping stack or a room scan (ScanNet) gives it: params.map_views frames
+// from cameras 2-3 m around its middle at 1.0-1.8 m, fused per params.map_spacing cube, cropped
+// to the room's walls and sampled down to a number of points log-uniform in
+// [params.map_points_min, map_points_max]; no image grid and no pose, z up, as a map is sent.
+Scene calibrationMap(const CalibrationRoom& room, const CalibrationParams& params, std::mt19937& rng);
+
 // One labelled peak: its score and support and whether an object of its category was there.
 struct CalibrationSample {
   int category = 0;  // index into Model::categories
@@ -56,7 +64,7 @@ struct CalibrationSample {
   bool positive = false;
   float fit = 0.5f;  // Verification::fit(), 0.5 when not verified
   float profile_distance = 1.0f;  // Verification::profile_distance, 1 when not verified
-  bool cloud = false;  // found in a room seen as an unorganized point sample
+  bool cloud = false;  // found in a room seen as an unorganized point sample, or as a map
   int fold = 0;        // the calibration fold whose rooms it was found in
 };
 
@@ -102,8 +110,8 @@ std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::v
                                                         double* chosen = nullptr);
 
 // Fits every category of `model` that has positives and negatives among the samples, the
-// frames' samples into its calibration and the point samples' into its cloud_calibration; the
-// others keep none. Progress lines go to params.progress.
+// frames' samples into its calibration and the point samples' (and maps') into its
+// cloud_calibration; the others keep none. Progress lines go to params.progress.
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
                const TrainingParams& params);
 

@@ -9,7 +9,6 @@
 #include <map>
 #include <mutex>
 #include <sstream>
-#include <unordered_map>
 
 #ifdef _OPENMP
 #include <omp.h>
@@ -56,34 +55,6 @@ DescriptorMatrix stackDescriptors(const std::vector<const TrainingScan*>& scans)
     at += s->features.descriptors.rows();
   }
   return all;
-}
-
-// Views of one mesh fused into a map (TrainingParams::fused): their points (already cropped to the
-// object's footprint widened by the margin) averaged per params.spacing cube, as a TSDF averages
-// the views' noise, no image grid, seen from `viewpoint`.
-Scene fusedScan(const std::vector<Eigen::Vector3f>& all, const Eigen::Vector3f& viewpoint,
-                const TrainingParams::FusedScanParams& params, const std::string& source) {
-  std::unordered_map<uint64_t, std::pair<Eigen::Vector3f, int>> cells;
-  const auto cell = [&](float x) {
-    return static_cast<uint64_t>(static_cast<int64_t>(std::floor(x / params.spacing)) + (1 << 20));
-  };
-  for (const auto& p : all) {
-    auto& c = cells.try_emplace((cell(p.x()) << 42) | (cell(p.y()) << 21) | cell(p.z()), Eigen::Vector3f::Zero(), 0)
-                  .first->second;
-    c.first += p;
-    ++c.second;
-  }
-  Scene scene;
-  scene.source = source;
-  scene.sensor_origin = viewpoint;
-  scene.up = Eigen::Vector3f::UnitZ();
-  for (const auto& [key, c] : cells) {
-    PointT point;
-    point.getVector3fMap() = c.first / static_cast<float>(c.second);
-    scene.cloud->push_back(point);
-  }
-  scene.cloud->sensor_origin_ << viewpoint, 0.0f;
-  return scene;
 }
 
 std::string utcNow() {
@@ -470,7 +441,9 @@ std::vector<TrainingScan> scanMeshes(const std::vector<TrainingMesh>& meshes, co
       Eigen::Vector3f viewpoint = Eigen::Vector3f::Zero();
       if (!views[mi].empty()) viewpoint = views[mi].front().translation();
       Scene& scene = fused_scenes[mi];
-      scene = fusedScan(all, viewpoint, params.fused, meshes[mi].path + " fused");
+      // Cropped to the object's footprint widened by the margin, averaged per cube as a TSDF
+      // averages the views' noise.
+      scene = fusedCloud(all, params.fused.spacing, viewpoint, meshes[mi].path + " fused");
       TrainingScan& scan = fused[mi];
       scan.category = meshes[mi].category;
       scan.model_index = model_index[mi];

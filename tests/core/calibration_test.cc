@@ -10,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "core/common/error.h"
+#include "core/gravity/viewpoint.h"
 #include "tests/common/synthetic_furniture.h"
 
 namespace ism {
@@ -182,6 +183,38 @@ TEST(CalibrationRoom, GroupedRoomsPullTheOtherFurnitureUpToATable) {
 
 namespace ism {
 namespace {
+
+TEST(CalibrationMap, TheRoomAsARoomScanIsSent) {
+  const Mesh chair_mesh = testing::boxMesh({-0.25f, -0.25f, 0}, {0.25f, 0.25f, 0.9f});
+  const PlacedObject chair{"chair", 0, &chair_mesh};
+  CalibrationParams params;
+  params.maps = true;
+  NoiseParams noise;
+  int maps = 0;
+  for (uint32_t seed = 1; seed <= 4; ++seed) {
+    std::mt19937 rng(seed);
+    const CalibrationRoom room = composeCalibrationRoom({&chair}, {}, params, noise, rng);
+    ASSERT_FALSE(room.objects.empty());
+    const Scene map = calibrationMap(room, params, rng);
+    // Unorganized, without pose, at most map_points_max points, all within the room's walls.
+    EXPECT_EQ(map.image_width, 0) << seed;
+    EXPECT_EQ(map.sensor_origin, Eigen::Vector3f::Zero()) << seed;
+    ASSERT_GE(map.cloud->size(), 1000u) << seed;
+    EXPECT_LE(map.cloud->size(), static_cast<size_t>(params.map_points_max)) << seed;
+    int on_chair = 0;
+    const Eigen::Vector2f chair_at = room.scene.objects[0].center.head<2>();
+    for (const auto& p : map.cloud->points) {
+      EXPECT_LE(std::abs(p.x), 3.5f + 1e-3f);
+      EXPECT_LE(p.y, 2.3f + 1e-3f);
+      if ((p.getVector3fMap().head<2>() - chair_at).norm() < 0.3f && p.z > 0.1f && p.z < 0.95f) ++on_chair;
+    }
+    EXPECT_GT(on_chair, 50) << seed << ": the chair is in the map";
+    // Recognition takes it for a map: its points all around the viewpoint it makes up.
+    maps += isMap(lookedAt(map)) ? 1 : 0;
+  }
+  // One view can leave too few points behind that viewpoint; the calibration skips such a map.
+  EXPECT_GE(maps, 3);
+}
 
 TEST(FitCalibration, TheProfileDecidesWhereScoreAndFitCannot) {
   // Scores and fits drawn alike for both; positives' surface is shaped like the training shapes

@@ -74,6 +74,7 @@ steps=(
   "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|one draw without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
   "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|one draw without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
   "icp|=checked-calibration|--preset default --icp 8|one draw with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
+  "calibration-maps|--draws 3 --codebook-sampling balanced --calibration-maps|--preset default|three draws with each calibration room also seen as a map (one view fused per 1.5 cm cube, 30,000-80,000 points, no pose) in the clouds' calibration (optional: ism-train --calibration-maps)"
   "kinect-window|--pixel-shift 0.5 --correlation-window 9|--preset default|one draw with the Kinect's correlation window in training scans and calibration rooms: edges jittered, thin parts lost (optional: ism-train --pixel-shift 0.5 --correlation-window 9)"
 )
 rows=()
@@ -84,9 +85,10 @@ for step in "${steps[@]}"; do
   [[ $name == background ]] && training_manifest=$background_manifest
   model=$work/$name.ismm
   # Rows but the balanced codebook's cluster a sample of every category's descriptors pooled.
-  [[ $name == balanced-codebook || $name == kinds || $train_args == =* ]] || train_args+=" --codebook-sampling pooled"
+  [[ $name == balanced-codebook || $name == kinds || $name == calibration-maps || $train_args == =* ]] ||
+    train_args+=" --codebook-sampling pooled"
   # Rows but the kinds' count a calibration room's peak on another category of its kind against it.
-  [[ $name == kinds || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
+  [[ $name == kinds || $name == calibration-maps || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
   if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
     [[ -f $work/$name.seconds ]] || { echo "ablation: $name has no earlier run in $work; name it" >&2; exit 1; }
     rows+=("$name|$what|$(cat "$work/$name.seconds")")
