@@ -413,7 +413,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
         const Scene sample = pointSample(room.scene.scene, fraction, rng);
         if (sample.cloud->size() >= 100) look(sample, true);
       }
-      if (cp.maps) {  // drawn after the frame's and the point sample's, which stay as they were
+      if (cp.maps) {  // drawn last, so that the frame's and the point sample's draws do not depend on it
         const Scene map = lookedAt(calibrationMap(room, cp, rng));
         if (map.cloud->size() >= 100 && isMap(map)) look(map, true);
       }

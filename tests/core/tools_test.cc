@@ -8,14 +8,14 @@
 #include <unistd.h>
 
 #include <filesystem>
-#include <fstream>
 #include <set>
-#include <sstream>
 #include <string>
 #include <vector>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
+
+#include "core/io/file_bytes.h"
 
 extern char** environ;
 
@@ -32,13 +32,6 @@ struct Outcome {
   std::string out, err;
 };
 
-std::string slurp(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
 class Tools : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -51,7 +44,7 @@ class Tools : public ::testing::Test {
 
   fs::path file(const std::string& name, const std::string& content) const {
     const fs::path path = dir_ / name;
-    std::ofstream(path, std::ios::binary) << content;
+    ism::writeFileBytes(path.string(), content);
     return path;
   }
 
@@ -79,8 +72,8 @@ class Tools : public ::testing::Test {
     int status = 0;
     waitpid(pid, &status, 0);
     r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status);
-    r.out = slurp(out);
-    r.err = slurp(err);
+    r.out = ism::readFileBytes(out.string());
+    r.err = ism::readFileBytes(err.string());
     return r;
   }
 
@@ -125,7 +118,7 @@ TEST_F(Tools, DetectNamesTheFileAndWhatIsWrongWithIt) {
 
 TEST_F(Tools, DetectRefusesABrokenModel) {
   const fs::path scene = file("tiny.pcd", kTinyPcd);
-  const std::string whole = slurp(kModel);
+  const std::string whole = ism::readFileBytes(kModel);
   ASSERT_GT(whole.size(), 4096u);
   const fs::path truncated = file("truncated.ismm", whole.substr(0, 3000));
   expectRefused(run("ism-detect", {"-m", truncated.string(), scene.string()}), {"corrupt model", "truncated.ismm"});
