@@ -273,58 +273,94 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       if (options.one_answer_per_object) own[m] = suppressOverlaps(std::move(own[m]), to_gravity, options.suppression);
     }
     // Groups that cannot reach `lowest` whatever the fits are not looked at, most confident first.
-    std::vector<std::pair<float, PeakGroup>> groups;
+    struct Group {
+      float confidence = 0;
+      PeakGroup peaks;
+      std::vector<float> reach;  // per model, the most its peak here can reach (0 without one)
+    };
+    std::vector<Group> groups;
     for (auto& group : groupPeaks(own, to_gravity, options.ensemble)) {
-      float best = 0, confidence = 0;
+      Group g{0, std::move(group), std::vector<float>(members.size(), 0.0f)};
+      float best = 0;
       for (size_t m = 0; m < members.size(); ++m) {
-        if (group.peak[m] < 0) continue;
-        const Hypothesis& peak = own[m][static_cast<size_t>(group.peak[m])];
-        best += members[m].plan.confidence[s].best(peak);
-        confidence += peak.confidence;
+        if (g.peaks.peak[m] < 0) continue;
+        const Hypothesis& peak = own[m][static_cast<size_t>(g.peaks.peak[m])];
+        g.reach[m] = members[m].plan.confidence[s].best(peak);
+        best += g.reach[m];
+        g.confidence += peak.confidence;
       }
-      if (best / count >= lowest) groups.emplace_back(confidence / count, std::move(group));
+      g.confidence /= count;
+      if (best / count >= lowest) groups.push_back(std::move(g));
     }
-    std::stable_sort(groups.begin(), groups.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-    // Each model's answer in each group: its peak verified, its confidence made again with the fit,
-    // checked against the scene; a duplicate or a rejected peak answers nothing.
+    std::stable_sort(groups.begin(), groups.end(), [](const Group& a, const Group& b) { return a.confidence > b.confidence; });
+    // Model by model, each peak verified and its confidence made again with the fit; a duplicate
+    // answers nothing. A group's mean counts the models verified so far at what they answered and
+    // the others at the most they can reach, so that a later model leaves unverified the peaks of
+    // groups the earlier ones have ruled out (each model verifies the groups the first one does in
+    // one model's recognition: all that can reach min_confidence).
     std::vector<std::vector<std::optional<Hypothesis>>> answered(groups.size(),
                                                                  std::vector<std::optional<Hypothesis>>(members.size()));
+    // `verified` sums as the answers' mean below does, so that the checks skip only groups it skips.
+    std::vector<float> verified(groups.size(), 0.0f);
+    std::vector<double> unverified(groups.size(), 0.0);
+    for (size_t g = 0; g < groups.size(); ++g) {
+      for (float r : groups[g].reach) unverified[g] += r;
+    }
+    std::vector<std::vector<size_t>> verified_groups(members.size());  // per model, most confident first
     for (size_t m = 0; m < members.size(); ++m) {
       const Model& own_model = *members[m].model;
       const auto peakIn = [&](size_t g) -> Hypothesis& {
-        return own[m][static_cast<size_t>(groups[g].second.peak[m])];
+        return own[m][static_cast<size_t>(groups[g].peaks.peak[m])];
       };
       // verifyHypotheses orders them most confident first (a stable sort): sorted so already, each
-      // keeps its group.
-      std::vector<size_t> sorted_group;
+      // keeps its group. The slack keeps rounding from ruling out a group that reaches `lowest`.
+      std::vector<size_t>& sorted_group = verified_groups[m];
       for (size_t g = 0; g < groups.size(); ++g) {
-        if (groups[g].second.peak[m] >= 0) sorted_group.push_back(g);
+        const bool open = (verified[g] + unverified[g]) / count >= static_cast<double>(lowest) - 1e-6;
+        unverified[g] -= groups[g].reach[m];
+        if (groups[g].peaks.peak[m] >= 0 && open) sorted_group.push_back(g);
       }
       std::stable_sort(sorted_group.begin(), sorted_group.end(),
                        [&](size_t a, size_t b) { return peakIn(a).confidence > peakIn(b).confidence; });
       std::vector<Hypothesis> sorted;
       for (size_t g : sorted_group) sorted.push_back(std::move(peakIn(g)));  // each peak is in one group
-      if (view) verifyHypotheses(*view, own_model, sorted, options.verification, options.should_stop);
-      const CategoryModel& own_category = own_model.categories[static_cast<size_t>(plan.categories[s])];
-      // What the checks need from the training shapes is worked out only for a category with
-      // answers to check: most frames have none for most categories.
-      std::optional<SceneChecks> checks;
+      if (view) {
+        verifyHypotheses(*view, own_model, sorted, options.verification, options.should_stop);
+        result.verified += sorted.size();
+      }
       for (size_t i = 0; i < sorted.size(); ++i) {
         Hypothesis& h = sorted[i];
         if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
         if (view) {
           h.confidence = members[m].plan.confidence[s](h);
           if (h.confidence < own_lowest) continue;
+        }
+        verified[sorted_group[i]] += h.confidence;
+        answered[sorted_group[i]][m] = std::move(h);
+      }
+    }
+    // The scene's checks, which can only take answers away, in the groups whose verified mean
+    // reaches `lowest`: the peaks they contradict are rejected (the first model's reported, in its
+    // order), the ones they refute marked. What the checks need from the training shapes is worked
+    // out only for a category with answers to check: most frames have none for most categories.
+    if (view) {
+      for (size_t m = 0; m < members.size(); ++m) {
+        const Model& own_model = *members[m].model;
+        const CategoryModel& own_category = own_model.categories[static_cast<size_t>(plan.categories[s])];
+        std::optional<SceneChecks> checks;
+        for (size_t g : verified_groups[m]) {
+          std::optional<Hypothesis>& h = answered[g][m];
+          if (!h || verified[g] / count < lowest) continue;
           if (!checks) checks.emplace(own_model, own_category, options.scene_checks);
-          const SceneVerdict verdict = (*checks)(*view, h, to_gravity);
+          const SceneVerdict verdict = (*checks)(*view, *h, to_gravity);
           if (verdict == SceneVerdict::kRejected) {
-            h.passed_selection = false;
-            if (m == 0) result.rejected.push_back(std::move(h));
+            h->passed_selection = false;
+            if (m == 0) result.rejected.push_back(std::move(*h));
+            h.reset();
             continue;
           }
-          h.refuted = verdict == SceneVerdict::kRefuted;
+          h->refuted = verdict == SceneVerdict::kRefuted;
         }
-        answered[sorted_group[i]][m] = std::move(h);
       }
     }
     // A group's answer: its most confident model's, at the mean of the models' confidences.

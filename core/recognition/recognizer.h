@@ -83,6 +83,7 @@ struct RecognitionResult {
   size_t input_points = 0;
   size_t surface_points = 0;
   size_t keypoints = 0;
+  size_t verified = 0;  // peaks verified against the scene, over an ensemble's models
   std::vector<Eigen::Vector3f> keypoint_positions;  // when keep_votes
   std::vector<Vote> votes;                          // when keep_votes
 };
