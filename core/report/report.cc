@@ -122,7 +122,8 @@ nlohmann::json toJson(const RecognitionResult& result) {
                       {"timings_ms", nlohmann::json::array()},
                       {"input_points", result.input_points},
                       {"surface_points", result.surface_points},
-                      {"keypoints", result.keypoints}};
+                      {"keypoints", result.keypoints},
+                      {"verified", result.verified}};
   for (const auto& h : result.hypotheses) j["hypotheses"].push_back(toJson(h));
   for (const auto& h : result.rejected) j["rejected"].push_back(toJson(h));
   for (const auto& [stage, ms] : result.timings.stages) j["timings_ms"].push_back({{"stage", stage}, {"ms", ms}});

@@ -28,6 +28,7 @@ RecognitionResult sampleResult() {
   r.timings.add("vote", 1.5);
   r.input_points = 1000;
   r.keypoints = 50;
+  r.verified = 3;
   return r;
 }
 
@@ -53,6 +54,7 @@ TEST(Report, JsonHasTheHypothesisFields) {
   EXPECT_EQ(j["timings_ms"][1]["stage"], "vote");
   EXPECT_EQ(j["input_points"], 1000);
   EXPECT_EQ(j["keypoints"], 50);
+  EXPECT_EQ(j["verified"], 3);
 }
 
 TEST(Report, TableListsEveryHypothesis) {
