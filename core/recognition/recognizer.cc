@@ -242,10 +242,11 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
 
 // Default preset, per category: each model's peaks merged to one per object, and the models'
 // peaks grouped by object (ensemble.h). In each group that can reach min_confidence, with `scene`,
-// each model's peak is verified against it and its confidence made again with the fit; a peak
-// whose agreeing surface is mostly another's of its model and category (their boxes overlap too
-// little to be merged) answers nothing. The scene's checks (scene_checks.h) send the peaks they
-// contradict to result.rejected (the first model's) and mark the ones they refute, which are
+// each model's peak is verified against it, until the models verified so far rule the group out,
+// and its confidence made again with the fit; a peak whose agreeing surface is mostly another's of
+// its model and category (their boxes overlap too little to be merged) answers nothing. In the
+// groups whose verified mean reaches min_confidence, the scene's checks (scene_checks.h) send the
+// peaks they contradict to result.rejected (the first model's) and mark the ones they refute, which are
 // rejected after the answers per object are chosen (selectHypotheses). A group's answer is its
 // most confident model's, at the mean of the models' confidences (0 for a model without an
 // answer there).
@@ -296,8 +297,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
     // Model by model, each peak verified and its confidence made again with the fit; a duplicate
     // answers nothing. A group's mean counts the models verified so far at what they answered and
     // the others at the most they can reach, so that a later model leaves unverified the peaks of
-    // groups the earlier ones have ruled out (each model verifies the groups the first one does in
-    // one model's recognition: all that can reach min_confidence).
+    // groups the earlier ones have ruled out. The first model verifies every group that can reach
+    // `lowest`, as one model alone does.
     std::vector<std::vector<std::optional<Hypothesis>>> answered(groups.size(),
                                                                  std::vector<std::optional<Hypothesis>>(members.size()));
     // `verified` sums as the answers' mean below does, so that the checks skip only groups it skips.
