@@ -293,7 +293,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       g.confidence /= count;
       if (best / count >= lowest) groups.push_back(std::move(g));
     }
-    std::stable_sort(groups.begin(), groups.end(), [](const Group& a, const Group& b) { return a.confidence > b.confidence; });
+    std::stable_sort(groups.begin(), groups.end(),
+                     [](const Group& a, const Group& b) { return a.confidence > b.confidence; });
     // Model by model, each peak verified and its confidence made again with the fit; a duplicate
     // answers nothing. A group's mean counts the models verified so far at what they answered and
     // the others at the most they can reach, so that a later model leaves unverified the peaks of
