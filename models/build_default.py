@@ -67,9 +67,13 @@ def main():
     ap.add_argument("--furniture-dir", default="/usr/share/sweethome3d/furniture")
     ap.add_argument("--work", default=os.path.join(HERE, "..", "build", "default-model-src"))
     ap.add_argument("--skip-training", action="store_true", help="only remake the sample scene")
-    ap.add_argument("--draws", type=int, default=3,
+    ap.add_argument("--draws", type=int, default=2,
                     help="draws of training's randomness the model holds, recognised together as an ensemble "
-                         "(ism-train --draws; docs/EVALUATION.md measures 1 against 3)")
+                         "(ism-train --draws; docs/EVALUATION.md measures 1, 2 and 3)")
+    ap.add_argument("--wall-seen-through", type=float, default=1.0,
+                    help="ism-train --wall-seen-through: a plane seen through more than this fraction of its own "
+                         "points is no wall, so its points may be keypoints (0: every large vertical plane is a wall; "
+                         "docs/EVALUATION.md, \"Walls the room is seen through\")")
     ap.add_argument("--no-background", dest="background", action="store_false",
                     help="leave out the background meshes of default/background.tsv (core/training/background.h), "
                          "which weigh the categories' codewords")
@@ -77,7 +81,19 @@ def main():
                     help="the meshes to train on and the sample scene's, in selection.tsv's columns")
     ap.add_argument("--manifest-only", action="store_true",
                     help="only extract the meshes and write WORK/manifest.tsv (no training, no sample scene, no credits)")
+    ap.add_argument("--training-options", action="store_true",
+                    help="only print the options ism-train gets besides --manifest and -o (tests/bench/run.sh times them)")
     args = ap.parse_args()
+
+    # Scenes skip MLS, as the training scans do: on the real scenes this recognises as well or
+    # better in most cells of ism-eval's table and saves a third of a Kinect frame (docs/EVALUATION.md).
+    # Two draws, not three, pay for the walls' test: with it the Kinect frames answer objects that
+    # stood before a plane the sensor saw past, and three draws would cost too near 100 ms a frame.
+    training_options = ["--codebook", "both", "--no-scene-smoothing", "--draws", str(args.draws),
+                        "--wall-seen-through", str(args.wall_seen_through)]
+    if args.training_options:
+        print(" ".join(training_options))
+        return
 
     os.makedirs(args.work, exist_ok=True)
     with open(args.selection) as f:
@@ -118,10 +134,8 @@ def main():
 
     if not args.skip_training:
         out = os.path.join(HERE, "default", "furniture.ismm")
-        # Scenes skip MLS, as the training scans do: on the real scenes this recognises as well or
-        # better in most cells of ism-eval's table and saves a third of a Kinect frame (docs/EVALUATION.md).
         cmd = [os.path.abspath(os.path.join(args.bin, "ism-train")), "--manifest", manifest, "-o", out,
-               "--codebook", "both", "--no-scene-smoothing", "--draws", str(args.draws)]
+               *training_options]
         print("+", " ".join(cmd), flush=True)
         subprocess.run(cmd, check=True)
 

@@ -58,7 +58,7 @@ std::optional<ServerOptions> parseServerOptions(int argc, char** argv, int* exit
       ->envname("ISM_MAX_MESSAGE_MB")
       ->check(CLI::Range(1, 2047))
       ->capture_default_str();
-  app.add_option("--max-model-mb", o.max_model_mb, "largest model file loaded (the shipped one is 18 MB)")
+  app.add_option("--max-model-mb", o.max_model_mb, "largest model file loaded (the shipped one is 13 MB)")
       ->envname("ISM_MAX_MODEL_MB")
       ->check(CLI::Range(1, 1 << 20))
       ->capture_default_str();

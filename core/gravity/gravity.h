@@ -57,10 +57,11 @@ struct GravityParams {
   // A wall bounds the room and is opaque: a plane with more than this many points (as a fraction
   // of its own) seen through it - behind it, where its own points leave a gap - is no wall
   // (gravity.cc, seenThrough). 0: not looked at, every plane of a wall's size is one. Only a
-  // scene with a sensor is tested: a map's viewpoint is made up (frontend.cc). Optional (ism-train
-  // --wall-seen-through 1): tum_desk's desk and chairs gain 2-4x their confidence, but its frame
-  // takes 1.6x as long (the freed planes' keypoints) and the dev clouds lose 0.9 points of mAP
-  // over four draws (docs/EVALUATION.md, "Walls the room is seen through").
+  // scene with a sensor is tested: a map's viewpoint is made up (frontend.cc). The shipped model
+  // is trained with 1 (ism-train --wall-seen-through 1): the Kinect frames' furniture that lines
+  // up with a plane gets 2-4x its confidence, and the dev clouds move within the draws' spread.
+  // The freed planes' keypoints cost a frame 1.6x, so the shipped model holds two draws, not three
+  // (1.2x the three draws' frame; docs/EVALUATION.md, "Walls the room is seen through").
   float wall_max_seen_through = 0.0f;
   int max_walls = 6;
   int iterations = 300;          // RANSAC hypotheses per plane

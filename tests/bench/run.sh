@@ -6,7 +6,7 @@
 #   1. ism-bench: each stage of one 640x480 Kinect frame (the development data's TUM desk frame,
 #      else the sample scene) on 1 and on all threads, the whole recognition in process and
 #      through the real ism-server over gRPC, model load, the server's memory;
-#   2. ism-train on the default model's manifest (as models/build_default.py runs it), timed once;
+#   2. ism-train on the default model's manifest with models/build_default.py's options, timed once;
 #   3. pcl-ism-peer: PCL's ISM trained on the same scans, both run on the annotated scenes.
 # Raw outputs stay in BUILD_DIR/bench-results/.
 set -euo pipefail
@@ -66,7 +66,9 @@ if (( skip_training )); then
 else
   echo "== ism-train on $shipped_manifest" >&2
   start=$(date +%s.%N)
-  "$build/core/ism-train" --manifest "$shipped_manifest" -o "$out/furniture.ismm" --codebook both --draws 3 >"$out/training.log"
+  # shellcheck disable=SC2046
+  "$build/core/ism-train" --manifest "$shipped_manifest" -o "$out/furniture.ismm" \
+    $("$py" "$root/models/build_default.py" --bin "$build/core" --training-options) >"$out/training.log"
   end=$(date +%s.%N)
   scans=$(grep -c '^scanned ' "$out/training.log" || true)
   printf '{"seconds": %s, "scans": %s}\n' "$(awk -v a="$start" -v b="$end" 'BEGIN { printf "%.1f", b - a }')" "${scans:-0}" >"$out/training.json"
