@@ -60,8 +60,9 @@ struct GravityParams {
   // scene with a sensor is tested: a map's viewpoint is made up (frontend.cc). The shipped model
   // is trained with 1 (ism-train --wall-seen-through 1): the Kinect frames' furniture that lines
   // up with a plane gets 2-4x its confidence, and the dev clouds move within the draws' spread.
-  // The freed planes' keypoints cost a frame 1.6x, so the shipped model holds two draws, not three
-  // (1.2x the three draws' frame; docs/EVALUATION.md, "Walls the room is seen through").
+  // The freed planes' keypoints cost a frame 1.6x, so the shipped model holds two draws: three
+  // would take a Kinect frame too near 100 ms on one core (docs/EVALUATION.md, "Walls the room is
+  // seen through").
   float wall_max_seen_through = 0.0f;
   int max_walls = 6;
   int iterations = 300;          // RANSAC hypotheses per plane

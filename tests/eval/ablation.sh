@@ -85,9 +85,9 @@ for step in "${steps[@]}"; do
   # From the background row on, every row trains with the background meshes.
   [[ $name == background ]] && training_manifest=$background_manifest
   model=$work/$name.ismm
-  # Rows but the balanced codebook's cluster a sample of every category's descriptors pooled.
-  [[ $name == balanced-codebook || $name == kinds || $name == walls || $name == calibration-maps || $train_args == =* ]] ||
-    train_args+=" --codebook-sampling pooled"
+  # Rows that do not name their codebook's sampling cluster a sample of every category's
+  # descriptors pooled: the steps before the balanced codebook's measure the pooled one.
+  [[ $train_args == *--codebook-sampling* || $train_args == =* ]] || train_args+=" --codebook-sampling pooled"
   # Rows but the kinds' count a calibration room's peak on another category of its kind against it.
   [[ $name == kinds || $name == walls || $name == calibration-maps || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
   if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
