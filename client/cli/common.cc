@@ -122,7 +122,7 @@ void RecognitionFlags::add(CLI::App* app) {
                       .description(""))
       ->default_str("default");
   app->add_option("--min-confidence", min_confidence, "default preset: drop hypotheses less confident (server "
-                                                      "default 0.5)")
+                                                      "default 0.3)")
       ->check(CLI::Range(0.0f, 0.99f));
   app->add_flag("--keep-overlaps", keep_overlaps,
                 "default preset: every confident peak, not one answer per object");

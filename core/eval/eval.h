@@ -35,7 +35,7 @@ std::vector<NamedStrategy> seedCombinations(const Model& model);
 // ranks every hypothesis down to the lowest confidence recognition looks at).
 struct EvalRecognition {
   RecognitionPreset preset = RecognitionPreset::kDefault;
-  float min_confidence = 0.5f;
+  float min_confidence = RecognitionOptions{}.min_confidence;
   bool verify = true;  // default preset, where the scene is at hand
   bool shared_surface = true;  // SuppressionParams::shared_surface
   bool maps_in_3d = true;      // VerificationParams::maps_in_3d

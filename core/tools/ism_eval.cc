@@ -170,7 +170,7 @@ int main(int argc, char** argv) {
                   "of given size (top_extent.h)");
   }
   std::string preset = "default";
-  float min_confidence = 0.5f;
+  float min_confidence = ism::RecognitionOptions{}.min_confidence;
   for (CLI::App* sub : {baseline, real}) {
     sub->add_option("--preset", preset, "default | seed: the recognition pipeline evaluated")
         ->check(CLI::IsMember({"default", "seed"}))

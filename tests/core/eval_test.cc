@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "core/common/error.h"
+#include "core/model/model_file.h"
 #include "tests/common/synthetic_furniture.h"
 
 namespace ism {
@@ -456,6 +457,35 @@ TEST(EvalReal, KinectScenesAreScoredAgainstTheirGroundTruth) {
     }
   }
   EXPECT_NE(formatReal(result).find("tum_desk"), std::string::npos);
+}
+
+// Issue 13's target for the annotated frames, on the shipped model at the default operating point:
+// each object of the two Kinect frames and the sample scene (4 chairs, 2 tables or desks, 1 sofa)
+// answered by a box of its class at 3D IoU 0.25, and nothing else answered. At min_confidence 0.5
+// tum_desk's desk and red chair and office1's chair are missed (docs/EVALUATION.md, "The default
+// operating point").
+TEST(EvalReal, TheShippedModelAnswersTheAnnotatedFramesObjectByObject) {
+  const fs::path kinect = fs::path(ISM_SHARED_DATA_DIR) / "real" / "kinect";
+  if (!fs::exists(kinect / "tum_desk.json")) GTEST_SKIP() << "no real scans at " << kinect << " (../shared absent)";
+  const fs::path sample = fs::path(ISM_SOURCE_DIR) / "models" / "sample" / "living_room.json";
+  std::vector<AnnotatedScene> scenes;
+  for (const auto& path : findSceneAnnotations({kinect.string(), sample.string()})) scenes.push_back(readSceneAnnotation(path));
+  ASSERT_EQ(scenes.size(), 3u);
+  const Model model = loadModel((fs::path(ISM_SOURCE_DIR) / "models" / "default" / "furniture.ismm").string());
+  RealEvalParams eval;  // the default preset and operating point
+  Strategy strategy;    // global 1-NN LW, as ism-eval real and the service answer
+  strategy.activation = model.trained_knn;
+  eval.strategies = {{strategyName(strategy), strategy}};
+  const RealResult result = evaluateRealScenes(model, scenes, eval);
+
+  ASSERT_EQ(result.combinations.size(), 1u);
+  int objects = 0;
+  for (const ClassScore& c : result.combinations[0].classes) {
+    objects += c.objects;
+    EXPECT_EQ(c.tp25, c.objects) << c.name;
+    EXPECT_EQ(c.fp25, 0) << c.name;
+  }
+  EXPECT_EQ(objects, 7);
 }
 
 }  // namespace

@@ -57,6 +57,8 @@ TEST(Recognize, FeaturesOfAnObjectGiveItsHypothesisAtTheModelsThreshold) {
   o.features.descriptors = DescriptorMatrix::Identity(40, 40);  // keypoint i activates codeword i
   RecognitionOptions options;  // global 1-NN LW: each keypoint's one vote weighs 1
   options.return_keypoints = true;
+  // Without a calibration, confidence is 1 - 2^-(score / threshold): 0.5 at the model's threshold.
+  options.min_confidence = 0.5f;
   const RecognitionResult result = recognizeFeatures(m, o.features, options);
   EXPECT_EQ(result.keypoints, 40u);
   ASSERT_EQ(result.hypotheses.size(), 1u);

@@ -46,7 +46,7 @@ def cells(rule, draw):
 
 rows = {(rule, d): cells(rule, d) for rule in ("height", "box") for d in draws}
 categories = rows[("box", draws[0])][4]
-print("Global 1nn+lw at min_confidence 0.5, 96 test scans; right per category (" + " / ".join(categories) +
+print("Global 1nn+lw at the default min_confidence, 96 test scans; right per category (" + " / ".join(categories) +
       "), called another category, answered nothing.\n")
 print("| draw | typical height: accuracy | right | wrong | none | typical box: accuracy | right | wrong | none |")
 print("|---|---|---|---|---|---|---|---|---|")

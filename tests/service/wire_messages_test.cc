@@ -165,7 +165,7 @@ TEST(WireMessages, AnswerOptionsRoundTripAndUnsetMeansTheDefaults) {
   RecognitionOptions defaults;
   wire::answerOptionsFromProto(v1::RecognitionOptions{}, &got);
   EXPECT_EQ(got.preset, RecognitionPreset::kDefault);
-  EXPECT_EQ(got.min_confidence, 0.5f);
+  EXPECT_EQ(got.min_confidence, 0.3f);
   EXPECT_EQ(got.min_confidence, defaults.min_confidence);
   EXPECT_TRUE(got.one_answer_per_object);
   EXPECT_TRUE(got.verify);

@@ -94,7 +94,7 @@ def main(argv=None) -> int:
     rec.add_argument("--preset", choices=("default", "seed"),
                      help="default: calibrated confidence, one answer per object; seed: the seed's pipeline")
     rec.add_argument("--min-confidence", type=float,
-                     help="default preset: drop hypotheses less confident (server default 0.5; at most 0.99)")
+                     help="default preset: drop hypotheses less confident (server default 0.3; at most 0.99)")
     rec.add_argument("--up", type=_up, metavar="X,Y,Z",
                      help="the scene's up in its coordinates, when known (default: the server finds the floor)")
     for name, default in (("fx", KINECT.fx), ("fy", KINECT.fy), ("cx", KINECT.cx), ("cy", KINECT.cy),

@@ -144,7 +144,7 @@ def recognition_options(model: str = "", categories: Sequence[str] = (), min_sco
     """ism.v1.RecognitionOptions; strategy names are lower case (codebook 'global'|'separated',
     activation 'knn'|'cutoff', weighting 'categorization'|'localization'|'activation').
     preset 'default' (calibrated confidence, one answer per object) or 'seed' (the seed's
-    pipeline); min_confidence (default preset, in [0, 0.99]; the server's default is 0.5); verify
+    pipeline); min_confidence (default preset, in [0, 0.99]; the server's default is 0.3); verify
     (default preset: check hypotheses against the scene's depth; the server's default is True). None
     leaves a field to the server's default."""
     options = service_pb2.RecognitionOptions(
