@@ -473,9 +473,7 @@ TEST(EvalReal, TheShippedModelAnswersTheAnnotatedFramesObjectByObject) {
   ASSERT_EQ(scenes.size(), 3u);
   const Model model = loadModel((fs::path(ISM_SOURCE_DIR) / "models" / "default" / "furniture.ismm").string());
   RealEvalParams eval;  // the default preset and operating point
-  Strategy strategy;    // global 1-NN LW, as ism-eval real and the service answer
-  strategy.activation = model.trained_knn;
-  eval.strategies = {{strategyName(strategy), strategy}};
+  eval.strategies = {seedCombinations(model).front()};  // global 1nn+lw, as ism-eval real and the service answer
   const RealResult result = evaluateRealScenes(model, scenes, eval);
 
   ASSERT_EQ(result.combinations.size(), 1u);
