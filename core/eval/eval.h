@@ -51,6 +51,7 @@ struct EvalRecognition {
   bool bare_floor = true;      // BareFloorParams::enabled
   bool under_top = true;       // UnderTopParams::enabled
   bool seat_area = true;       // SeatAreaParams::enabled
+  bool merge_support = true;   // SuppressionParams::merge_support
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -57,7 +57,9 @@ struct Hypothesis {
   // the supporting keypoints.
   OrientedBox box;
   bool upright_box = false;
-  int support = 0;       // keypoints that voted into the peak
+  // Keypoints that voted into the peak, and into the peaks of its category merged into it
+  // (SuppressionParams::merge_support), each once.
+  int support = 0;
   Eigen::Vector3f support_centroid = Eigen::Vector3f::Zero();
   bool passed_selection = true;  // box volume within range and longest edge below the maximum
   // The scene refutes the category but shows an object there, of which this is the best answer (a

@@ -263,6 +263,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
   const float own_lowest = members.size() > 1 ? kLowestConfidence : lowest;
   std::optional<VerificationScene> view;
   if (scene != nullptr) view = makeVerificationScene(*scene, features.gravity, options.verification);
+  SuppressionParams before_confidence = options.suppression;
+  before_confidence.merge_support = false;  // the confidence reads each peak's own support
   std::vector<Hypothesis> answers;
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
@@ -271,7 +273,7 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       for (auto& h : peaks[m]) {
         if (h.category == category.name) own[m].push_back(std::move(h));
       }
-      if (options.one_answer_per_object) own[m] = suppressOverlaps(std::move(own[m]), to_gravity, options.suppression);
+      if (options.one_answer_per_object) own[m] = suppressOverlaps(std::move(own[m]), to_gravity, before_confidence);
     }
     // Groups that cannot reach `lowest` whatever the fits are not looked at, most confident first.
     struct Group {

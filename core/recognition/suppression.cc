@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <iterator>
+#include <utility>
 
 #include "core/common/upright_box.h"
 
@@ -46,6 +48,39 @@ bool sameObject(const Hypothesis& winner, const UprightBox& winner_box, const Hy
   return shared < 0 || shared >= params.min_shared_surface;
 }
 
+// `from`'s supporting keypoints added to `into`'s, each once (both lists ascend by index, as the
+// Hough space makes them).
+void mergeSupport(Hypothesis& into, const Hypothesis& from) {
+  if (from.support_indices.empty()) return;
+  const bool positions = into.support_keypoints.size() == into.support_indices.size() &&
+                         from.support_keypoints.size() == from.support_indices.size();
+  using Keypoint = std::pair<int, Eigen::Vector3f>;
+  const auto keypoints = [&](const Hypothesis& h) {
+    std::vector<Keypoint> out;
+    for (size_t k = 0; k < h.support_indices.size(); ++k) {
+      out.emplace_back(h.support_indices[k], positions ? h.support_keypoints[k] : Eigen::Vector3f::Zero());
+    }
+    return out;
+  };
+  const auto a = keypoints(into), b = keypoints(from);
+  std::vector<Keypoint> both;
+  const auto byIndex = [](const Keypoint& x, const Keypoint& y) { return x.first < y.first; };
+  std::merge(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both), byIndex);
+  both.erase(std::unique(both.begin(), both.end(), [](const Keypoint& x, const Keypoint& y) { return x.first == y.first; }),
+             both.end());
+  into.support_indices.clear();
+  for (const auto& keypoint : both) into.support_indices.push_back(keypoint.first);
+  into.support = static_cast<int>(both.size());
+  if (!positions) return;  // the centroid stays the peak's own
+  into.support_keypoints.clear();
+  into.support_centroid.setZero();
+  for (const auto& keypoint : both) {
+    into.support_keypoints.push_back(keypoint.second);
+    into.support_centroid += keypoint.second;
+  }
+  into.support_centroid /= static_cast<float>(both.size());
+}
+
 }  // namespace
 
 std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, const Eigen::Matrix3f& to_gravity,
@@ -68,6 +103,7 @@ std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, con
       continue;
     }
     Hypothesis& w = kept[winner];
+    if (h.category == w.category && params.merge_support) mergeSupport(w, h);
     if (h.category == w.category || h.refuted) continue;  // another peak of the same object, or not an answer
     const bool listed = std::any_of(w.alternatives.begin(), w.alternatives.end(),
                                     [&](const Alternative& a) { return a.category == h.category; });

@@ -18,6 +18,12 @@ struct SuppressionParams {
   float min_shared_surface = 0.5f;
   // false: across categories too, a centre in the other's footprint alone makes one object.
   bool shared_surface = true;
+  // The supporting keypoints of the peaks a hypothesis absorbs of its own category join its own
+  // (Hypothesis::support, support_keypoints, support_indices, support_centroid): one answer on a
+  // long table is supported by every peak its top gave. Off where the support still feeds the
+  // confidence (recognition's merge before verification, the calibration's), which learned it per
+  // peak.
+  bool merge_support = true;
 };
 
 // `hypotheses` in any order, with boxes in scene coordinates; `to_gravity` turns them into the

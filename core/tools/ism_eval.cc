@@ -104,6 +104,10 @@ int main(int argc, char** argv) {
   bool no_verify = false;
   real->add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified (verification.h)");
   bool centre_suppression = false;
+  bool own_peak_support = false;
+  real->add_flag("--own-peak-support", own_peak_support,
+                 "default preset: an answer's supporting keypoints (the seed's centre rule reads their centroid) are "
+                 "its own peak's, not also those of the peaks of its category it merged (suppression.h)");
   real->add_flag("--centre-suppression", centre_suppression,
                  "default preset: across categories, a centre in the other's footprint makes one object whatever "
                  "surface each explains (suppression.h)");
@@ -221,7 +225,7 @@ int main(int argc, char** argv) {
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
                             fit_terms, !keep_topless, !no_seat_run, !no_open_top, !no_upper_part, !no_level_top, !no_bare_floor,
-                            !no_under_top, !no_seat_area};
+                            !no_under_top, !no_seat_area, !own_peak_support};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

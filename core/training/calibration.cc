@@ -292,7 +292,9 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
     for (const auto& p : peaks) {
       if (p.category == name) own.push_back(p);
     }
-    own = suppressOverlaps(std::move(own), to_gravity);  // one per object, as recognition keeps
+    SuppressionParams suppression;
+    suppression.merge_support = false;  // as recognition merges before the confidence
+    own = suppressOverlaps(std::move(own), to_gravity, suppression);  // one per object, as recognition keeps
     verifyHypotheses(view, model, own, verification);
     own.erase(std::remove_if(own.begin(), own.end(),
                              [](const Hypothesis& h) { return h.verification && h.verification->duplicate(); }),

@@ -87,6 +87,53 @@ TEST(Suppression, PeaksOfOneCategoryMergeByCentreWhateverTheySee) {
   EXPECT_TRUE(kept[0].alternatives.empty());
 }
 
+// Keypoints `indices` at x = index / 10 m, as the Hough space lists a peak's support.
+void support(Hypothesis& h, const std::vector<int>& indices) {
+  h.support_indices = indices;
+  h.support_keypoints.clear();
+  h.support_centroid.setZero();
+  for (int k : indices) {
+    h.support_keypoints.emplace_back(0.1f * static_cast<float>(k), 0, 0.75f);
+    h.support_centroid += h.support_keypoints.back();
+  }
+  h.support = static_cast<int>(indices.size());
+  h.support_centroid /= static_cast<float>(h.support);
+}
+
+TEST(Suppression, OneAnswerOnALongTableIsSupportedByEveryPeakItsTopGave) {
+  const Eigen::Vector3f size(1.2f, 0.6f, 0.75f);
+  std::vector<Hypothesis> hs = {hypothesis("table", 0.5f, {0, 0, 0.375f}, size),
+                                hypothesis("table", 0.4f, {0.5f, 0, 0.375f}, size)};
+  support(hs[0], {0, 1, 2, 3});
+  support(hs[1], {2, 3, 8, 9});  // keypoints 2 and 3 voted into both peaks
+  auto kept = suppressOverlaps(hs, kUp);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].support_indices, (std::vector<int>{0, 1, 2, 3, 8, 9}));
+  EXPECT_EQ(kept[0].support, 6);
+  ASSERT_EQ(kept[0].support_keypoints.size(), 6u);
+  EXPECT_FLOAT_EQ(kept[0].support_keypoints[4].x(), 0.8f);
+  EXPECT_NEAR(kept[0].support_centroid.x(), 0.1f * 23 / 6, 1e-5f);
+
+  // Before the confidence is made from each peak's own support, the winner keeps its own.
+  SuppressionParams params;
+  params.merge_support = false;
+  kept = suppressOverlaps(hs, kUp, params);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].support, 4);
+  EXPECT_NEAR(kept[0].support_centroid.x(), 0.15f, 1e-5f);
+}
+
+TEST(Suppression, AnotherCategorysPeakLendsNoSupport) {
+  std::vector<Hypothesis> hs = {hypothesis("office_chair", 0.4f, {0, 0, 0.45f}, kChairSize),
+                                hypothesis("dining_chair", 0.2f, {0.1f, 0, 0.45f}, kChairSize)};
+  support(hs[0], {0, 1});
+  support(hs[1], {5, 6});
+  const auto kept = suppressOverlaps(hs, kUp);
+  ASSERT_EQ(kept.size(), 1u);
+  EXPECT_EQ(kept[0].support_indices, (std::vector<int>{0, 1}));
+  EXPECT_EQ(kept[0].support, 2);
+}
+
 TEST(Suppression, BoxesOverlappingByAQuarterAreOneObjectWhateverTheySee) {
   // An office chair and a dining chair on one chair, 10 cm apart, explaining different cells.
   std::vector<Hypothesis> hs = {hypothesis("office_chair", 0.4f, {0, 0, 0.45f}, kChairSize, cells(0, 40)),
