@@ -104,13 +104,13 @@ int main(int argc, char** argv) {
   bool no_verify = false;
   real->add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified (verification.h)");
   bool centre_suppression = false;
+  real->add_flag("--centre-suppression", centre_suppression,
+                 "default preset: across categories, a centre in the other's footprint makes one object whatever "
+                 "surface each explains (suppression.h)");
   bool own_peak_support = false;
   real->add_flag("--own-peak-support", own_peak_support,
                  "default preset: an answer's supporting keypoints (the seed's centre rule reads their centroid) are "
                  "its own peak's, not also those of the peaks of its category it merged (suppression.h)");
-  real->add_flag("--centre-suppression", centre_suppression,
-                 "default preset: across categories, a centre in the other's footprint makes one object whatever "
-                 "surface each explains (suppression.h)");
   std::string map_verification = "3d";
   real->add_option("--map-verification", map_verification,
                    "default preset: how maps (clouds around their viewpoint) are verified: 3d, each shape point "
