@@ -188,7 +188,7 @@ TEST(Faults, CallsRacingTheShutdownAreRefusedUnavailable) {
   for (int round = 0; round < 4; ++round) {
     ServerProcess server({"--drain-seconds", "0.5"});
     std::mutex mutex;
-    std::atomic<int> answered{0};
+    std::atomic<int> clients_answered{0};
     std::atomic<bool> gone{false};
     std::vector<std::thread> clients;
     for (int c = 0; c < 8; ++c) {
@@ -200,7 +200,7 @@ TEST(Faults, CallsRacingTheShutdownAreRefusedUnavailable) {
           context.set_wait_for_ready(first);  // see SigtermUnderLoadAnswersOrRefusesEveryCall
           v1::RecognizeResponse response;
           const grpc::Status status = stub->Recognize(&context, request, &response);
-          if (status.ok()) ++answered;
+          if (status.ok() && first) ++clients_answered;
           std::lock_guard<std::mutex> lock(mutex);
           ++counts[status.error_code()];
           if (!status.ok() && status.error_code() != grpc::StatusCode::UNAVAILABLE) {
@@ -213,8 +213,14 @@ TEST(Faults, CallsRacingTheShutdownAreRefusedUnavailable) {
         }
       });
     }
+    // Every client's first call, the one that waits for the connection, must be answered before
+    // the signal: one still connecting then would wait for a server that never comes back, until
+    // its deadline (as in SigtermUnderLoadAnswersOrRefusesEveryCall).
     const auto give_up = Clock::now() + std::chrono::seconds(60);
-    while (answered < 8 && Clock::now() < give_up) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    while (clients_answered < 8 && Clock::now() < give_up) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    EXPECT_EQ(clients_answered, 8) << "round " << round << ": the load never got going";
     EXPECT_EQ(server.terminate(std::chrono::seconds(60)), 0);
     gone = true;
     for (auto& c : clients) c.join();
