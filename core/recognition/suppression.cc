@@ -65,9 +65,7 @@ void mergeSupport(Hypothesis& into, const Hypothesis& from) {
   const auto a = keypoints(into), b = keypoints(from);
   std::vector<Keypoint> both;
   const auto byIndex = [](const Keypoint& x, const Keypoint& y) { return x.first < y.first; };
-  std::merge(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both), byIndex);
-  both.erase(std::unique(both.begin(), both.end(), [](const Keypoint& x, const Keypoint& y) { return x.first == y.first; }),
-             both.end());
+  std::set_union(a.begin(), a.end(), b.begin(), b.end(), std::back_inserter(both), byIndex);
   into.support_indices.clear();
   for (const auto& keypoint : both) into.support_indices.push_back(keypoint.first);
   into.support = static_cast<int>(both.size());
