@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <vector>
 
@@ -16,11 +17,19 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   check.max_share = params.max_share;
   check.min_upper = params.min_upper;
   check.max_level = params.max_level;
-  std::vector<Eigen::Vector3f> footprint;  // SceneBox::boxFrame
+  check.max_run_on = params.max_level > 0 ? params.max_run_on : 0.0f;
+  std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
+  const float reach = params.run_far;
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
     const bool over = local.overFootprint(p);
     if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
+    if (check.max_run_on > 0 && !over && height > params.run_from && height < params.run_to) {
+      const Eigen::Vector3f q = local.boxFrame(p);
+      if (std::abs(q.x()) < local.box.size.x() / 2 + reach && std::abs(q.y()) < local.box.size.y() / 2 + reach) {
+        beside.push_back(q);
+      }
+    }
     if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
     // The inner part of the footprint lies within it (most of the scene is over neither).
     if (!over && params.inner <= 1) continue;
@@ -34,7 +43,38 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   if (params.max_level > 0) {
     check.level_share = levelShare(footprint, local.box.size.x(), local.box.size.y(), top - local.floor_z, params);
   }
+  if (check.max_run_on > 0) check.run_on_share = runOnShare(beside, local.box.size.x(), local.box.size.y(), params);
   return check;
+}
+
+float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, const OpenTopParams& params) {
+  const float cell = std::max(params.run_cell, 1e-3f);
+  const int across = std::max(1, static_cast<int>((params.run_far - params.run_near) / cell));
+  // Strips 0 and 1 lie beyond the ends of the width (x), 2 and 3 beyond those of the depth (y);
+  // each runs along the middle `inner` of its side.
+  const float side[2] = {params.inner * depth, params.inner * width};
+  const int along[2] = {std::max(1, static_cast<int>(side[0] / cell)), std::max(1, static_cast<int>(side[1] / cell))};
+  std::vector<uint8_t> filled[4];
+  for (int s = 0; s < 4; ++s) filled[s].assign(static_cast<size_t>(along[s / 2] * across), 0);
+  for (const auto& p : points) {
+    if (p.z() <= params.run_from || p.z() >= params.run_to) continue;
+    for (int s = 0; s < 4; ++s) {
+      const int axis = s / 2;
+      const float sign = s % 2 == 0 ? 1.0f : -1.0f;
+      const float out = sign * (axis == 0 ? p.x() : p.y()) - (axis == 0 ? width : depth) / 2;
+      const float at = (axis == 0 ? p.y() : p.x()) + side[axis] / 2;
+      if (out < params.run_near || out >= params.run_far || at < 0 || at >= side[axis]) continue;
+      const int u = std::min(along[axis] - 1, static_cast<int>(at / side[axis] * static_cast<float>(along[axis])));
+      const int v = std::min(across - 1, static_cast<int>((out - params.run_near) / cell));
+      filled[s][static_cast<size_t>(u * across + v)] = 1;
+    }
+  }
+  float most = 0;
+  for (const auto& strip : filled) {
+    const auto n = std::count(strip.begin(), strip.end(), uint8_t{1});
+    most = std::max(most, static_cast<float>(n) / static_cast<float>(strip.size()));
+  }
+  return most;
 }
 
 float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,

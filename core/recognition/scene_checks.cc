@@ -37,7 +37,7 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
   if (top.contradicted() || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
     return SceneVerdict::kRejected;
   }
-  return top.level() ? SceneVerdict::kRefuted : SceneVerdict::kKept;
+  return top.refuted() ? SceneVerdict::kRefuted : SceneVerdict::kKept;
 }
 
 }  // namespace ism

@@ -103,8 +103,8 @@ int main(int argc, char** argv) {
                "as over a desk's legs");
   bool no_level_top = false;
   app.add_flag("--no-level-top", no_level_top,
-               "default preset: keep couches over whose footprint the measured surface is one level, as a bed's "
-               "mattress is");
+               "default preset: keep couches over whose footprint the measured surface is one level, or beside "
+               "which it runs on at a seat's height, as a bed's mattress does");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {

@@ -150,8 +150,8 @@ int main(int argc, char** argv) {
                   "default preset: keep chairs and couches with no measured surface in the top of their body, where a "
                   "backrest is (open_top.h)");
     sub->add_flag("--no-level-top", no_level_top,
-                  "default preset: keep couches over whose footprint the measured surface is one level, as a bed's "
-                  "mattress is (open_top.h)");
+                  "default preset: keep couches over whose footprint the measured surface is one level, or beside "
+                  "which it runs on at a seat's height, as a bed's mattress does (open_top.h)");
     sub->add_flag("--no-bare-floor", no_bare_floor,
                   "default preset: keep hypotheses with bare floor in the middle of their footprint (bare_floor.h)");
     sub->add_flag("--no-under-top", no_under_top,

@@ -144,6 +144,55 @@ TEST(OpenTop, ACouchIsNotOneLevel) {
   EXPECT_FALSE(checkOpenTop(view, verifiedCouchAt(1.6f), off).level());
 }
 
+// A couch's shape at the foot of a bed seen end on: the footprint holds a seat, a back and arms,
+// as a bed's end with its footboard can, but the mattress runs on behind it at 0.55 m. The same
+// couch standing free against a wall, with a 1 m coffee table 0.4 m in front of it, is a couch.
+TEST(OpenTop, ACouchWhoseSeatHeightSurfaceRunsOnIsRefuted) {
+  VerificationScene bed;
+  bed.floor_z = 0.0f;
+  bed.map = true;
+  plate(bed.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
+  testing::couchTop(bed.points, 0.0f);
+  plate(bed.points, -1.0f, 1.0f, 0.5f, 2.1f, 0.55f);  // the mattress behind the back
+  const OpenTopCheck end = checkOpenTop(bed, verifiedCouchAt(0.0f));
+  EXPECT_FALSE(end.level()) << "the footprint itself is not one level";
+  EXPECT_FALSE(end.contradicted());
+  EXPECT_GT(end.run_on_share, 0.95f);
+  EXPECT_TRUE(end.runsOn());
+  EXPECT_TRUE(end.refuted());
+
+  VerificationScene room;
+  room.floor_z = 0.0f;
+  room.map = true;
+  plate(room.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
+  testing::couchTop(room.points, 0.0f);
+  wall(room.points, -3.0f, 3.0f, 0.5f, 0.0f, 2.5f);           // the wall behind its back
+  plate(room.points, -0.5f, 0.5f, -1.35f, -0.85f, 0.45f);     // the coffee table's top
+  const OpenTopCheck couch = checkOpenTop(room, verifiedCouchAt(0.0f));
+  EXPECT_GT(couch.run_on_share, 0.0f) << "the coffee table and the wall fill part of a strip";
+  EXPECT_LT(couch.run_on_share, 0.5f);
+  EXPECT_FALSE(couch.runsOn());
+  EXPECT_FALSE(couch.refuted());
+
+  OpenTopParams off;  // looked at only with the level top
+  off.max_level = 0;
+  EXPECT_FALSE(checkOpenTop(bed, verifiedCouchAt(0.0f), off).refuted());
+  off = {};
+  off.max_run_on = 0;
+  EXPECT_FALSE(checkOpenTop(bed, verifiedCouchAt(0.0f), off).runsOn());
+}
+
+TEST(OpenTop, TheRunOnShareCountsTheFullestStrip) {
+  std::vector<Eigen::Vector3f> points;  // beside a 2 x 1 m footprint: half of the strip past +y
+  plate(points, 0.0f, 0.78f, 0.56f, 1.04f, 0.5f);
+  EXPECT_NEAR(runOnShare(points, 2.0f, 1.0f), 0.5f, 0.1f);
+  plate(points, -1.54f, -1.06f, -0.38f, 0.38f, 0.5f);  // all of the strip past -x
+  EXPECT_NEAR(runOnShare(points, 2.0f, 1.0f), 1.0f, 0.05f);
+  std::vector<Eigen::Vector3f> high;  // over the band: a shelf at 1 m
+  plate(high, -1.54f, -1.06f, -0.38f, 0.38f, 1.0f);
+  EXPECT_EQ(runOnShare(high, 2.0f, 1.0f), 0.0f);
+}
+
 TEST(OpenTop, TheLevelShareCountsTheFootprintsCells) {
   std::vector<Eigen::Vector3f> half;  // a level plate over one half of a 1 m square, none on the other
   plate(half, -0.48f, -0.02f, -0.48f, 0.48f, 0.5f);
