@@ -75,7 +75,9 @@ int main(int argc, char** argv) {
   server->drain();
   // Exit without destroying the server: gRPC's own shutdown would answer calls arriving
   // meanwhile CANCELLED (grpc/grpc#41785), which clients do not retry. Every call we took is
-  // answered by now; a call still on its way finds the connection closed: UNAVAILABLE.
-  spdlog::shutdown();
+  // answered by now; a call still on its way finds the connection closed: UNAVAILABLE. The
+  // loggers are flushed, not dropped: work stopped past the drain time may still be logging on
+  // its thread, and a dropped default logger is a null pointer to it.
+  spdlog::apply_all([](const std::shared_ptr<spdlog::logger>& logger) { logger->flush(); });
   std::_Exit(0);
 }
