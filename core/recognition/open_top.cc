@@ -63,7 +63,7 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
       const float sign = s % 2 == 0 ? 1.0f : -1.0f;
       const float out = sign * (axis == 0 ? p.x() : p.y()) - (axis == 0 ? width : depth) / 2;
       const float at = (axis == 0 ? p.y() : p.x()) + side[axis] / 2;
-      if (out < params.run_near || out >= params.run_far || at < 0 || at >= side[axis]) continue;
+      if (!(out >= params.run_near && out < params.run_far && at >= 0 && at < side[axis])) continue;  // NaN too
       const int u = std::min(along[axis] - 1, static_cast<int>(at / side[axis] * static_cast<float>(along[axis])));
       const int v = std::min(across - 1, static_cast<int>((out - params.run_near) / cell));
       filled[s][static_cast<size_t>(u * across + v)] = 1;

@@ -1,6 +1,7 @@
 // An open top: a chair standing free, the same chair under a wall cabinet, and a coffee table.
 #include "core/recognition/open_top.h"
 
+#include <limits>
 #include <vector>
 
 #include <Eigen/Core>
@@ -187,6 +188,8 @@ TEST(OpenTop, TheRunOnShareCountsTheFullestStrip) {
   plate(points, 0.0f, 0.78f, 0.56f, 1.04f, 0.5f);
   EXPECT_NEAR(runOnShare(points, 2.0f, 1.0f), 0.5f, 0.1f);
   plate(points, -1.54f, -1.06f, -0.38f, 0.38f, 0.5f);  // all of the strip past -x
+  const float nan = std::numeric_limits<float>::quiet_NaN();
+  points.emplace_back(nan, nan, 0.5f);  // lies in no strip
   EXPECT_NEAR(runOnShare(points, 2.0f, 1.0f), 1.0f, 0.05f);
   std::vector<Eigen::Vector3f> high;  // over the band: a shelf at 1 m
   plate(high, -1.54f, -1.06f, -0.38f, 0.38f, 1.0f);
