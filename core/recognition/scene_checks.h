@@ -6,9 +6,9 @@
 // measured over its footprint (seat_area.h) and nothing may stand over its top (open_top.h); no
 // hypothesis in a map may have bare floor in the middle of its footprint (bare_floor.h); a couch
 // over a level top, or beside a mattress running on, is refuted (open_top.h). Recognition and the
-// calibration share them (but the seat's area, CalibrationParams::checks): a confidence is the
-// chance that a hypothesis which passed them is right, so the calibration learns it from the
-// peaks that pass them too.
+// calibration share them (but the seat's area and the run-on, CalibrationParams::checks): a
+// confidence is the chance that a hypothesis which passed them is right, so the calibration
+// learns it from the peaks that pass them too.
 #include <Eigen/Core>
 #include <optional>
 
