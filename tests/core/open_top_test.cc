@@ -148,12 +148,17 @@ TEST(OpenTop, ACouchIsNotOneLevel) {
 // A couch's shape at the foot of a bed seen end on: the footprint holds a seat, a back and arms,
 // as a bed's end with its footboard can, but the mattress runs on behind it at 0.55 m. The same
 // couch standing free against a wall, with a 1 m coffee table 0.4 m in front of it, is a couch.
+VerificationScene couchOnTheFloor() {
+  VerificationScene view;
+  view.floor_z = 0.0f;
+  view.map = true;
+  plate(view.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
+  testing::couchTop(view.points, 0.0f);
+  return view;
+}
+
 TEST(OpenTop, ACouchWhoseSeatHeightSurfaceRunsOnIsRefuted) {
-  VerificationScene bed;
-  bed.floor_z = 0.0f;
-  bed.map = true;
-  plate(bed.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
-  testing::couchTop(bed.points, 0.0f);
+  VerificationScene bed = couchOnTheFloor();
   plate(bed.points, -1.0f, 1.0f, 0.5f, 2.1f, 0.55f);  // the mattress behind the back
   const OpenTopCheck end = checkOpenTop(bed, verifiedCouchAt(0.0f));
   EXPECT_FALSE(end.level()) << "the footprint itself is not one level";
@@ -162,11 +167,7 @@ TEST(OpenTop, ACouchWhoseSeatHeightSurfaceRunsOnIsRefuted) {
   EXPECT_TRUE(end.runsOn());
   EXPECT_TRUE(end.refuted());
 
-  VerificationScene room;
-  room.floor_z = 0.0f;
-  room.map = true;
-  plate(room.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
-  testing::couchTop(room.points, 0.0f);
+  VerificationScene room = couchOnTheFloor();
   wall(room.points, -3.0f, 3.0f, 0.5f, 0.0f, 2.5f);           // the wall behind its back
   plate(room.points, -0.5f, 0.5f, -1.35f, -0.85f, 0.45f);     // the coffee table's top
   const OpenTopCheck couch = checkOpenTop(room, verifiedCouchAt(0.0f));
