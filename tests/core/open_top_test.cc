@@ -145,9 +145,7 @@ TEST(OpenTop, ACouchIsNotOneLevel) {
   EXPECT_FALSE(checkOpenTop(view, verifiedCouchAt(1.6f), off).level());
 }
 
-// A couch's shape at the foot of a bed seen end on: the footprint holds a seat, a back and arms,
-// as a bed's end with its footboard can, but the mattress runs on behind it at 0.55 m. The same
-// couch standing free against a wall, with a 1 m coffee table 0.4 m in front of it, is a couch.
+// A couch's shape (map_surfaces.h) at y = 0 on the floor, as a map.
 VerificationScene couchOnTheFloor() {
   VerificationScene view;
   view.floor_z = 0.0f;
@@ -157,6 +155,9 @@ VerificationScene couchOnTheFloor() {
   return view;
 }
 
+// The couch's shape at the foot of a bed seen end on: the footprint holds a seat, a back and arms,
+// as a bed's end with its footboard can, but the mattress runs on behind it at 0.55 m. The same
+// couch standing free against a wall, with a 1 m coffee table 0.4 m in front of it, is a couch.
 TEST(OpenTop, ACouchWhoseSeatHeightSurfaceRunsOnIsRefuted) {
   VerificationScene bed = couchOnTheFloor();
   plate(bed.points, -1.0f, 1.0f, 0.5f, 2.1f, 0.55f);  // the mattress behind the back
