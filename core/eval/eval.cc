@@ -69,6 +69,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.scene_checks.top_extent.enabled = recognition.top_extent;
   options.scene_checks.top_extent.footprint_prior = recognition.footprint_prior;
   options.scene_checks.top_extent.require_top = recognition.require_top;
+  if (!recognition.hidden_top) options.scene_checks.top_extent.max_hidden_run = 0;
   options.scene_checks.seat_run.enabled = recognition.seat_run;
   options.scene_checks.open_top.enabled = recognition.open_top;
   if (!recognition.upper_part) options.scene_checks.open_top.min_upper = 0;

@@ -52,6 +52,7 @@ struct EvalRecognition {
   bool under_top = true;       // UnderTopParams::enabled
   bool seat_area = true;       // SeatAreaParams::enabled
   bool merge_support = true;   // SuppressionParams::merge_support
+  bool hidden_top = true;      // TopExtentParams::max_hidden_run above 0
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

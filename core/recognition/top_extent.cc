@@ -181,14 +181,37 @@ TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, con
   const Grid closed = measured.dilated().eroded();
   const Grid opened = closed.eroded().dilated() & closed;
 
-  // Grown from the cells within the fitted footprint.
+  // The cells of the top's height the sensor cannot see: a measured point at least kInFront nearer
+  // to the sensor (the origin) lies on the line of sight to them. The sensor stands well off the
+  // top's height, else every line of sight grazes it.
+  constexpr float kInFront = 0.1f;
+  const int max_run = scene.map || !(params.max_hidden_run > 0)
+                          ? 0
+                          : static_cast<int>(std::min(std::floor(params.max_hidden_run / params.cell), static_cast<float>(n)));
+  Grid hidden(centre.head<2>() - Eigen::Vector2f::Constant(half), params.cell, n);
+  if (max_run > 0 && std::abs(top) > kInFront) {
+    for (const auto& p : scene.points) {
+      const float t = p.z() / top;  // p lies on the line of sight to p / t, at the top's height
+      if (!(t > 0 && t < 1) || (1 - t) * p.norm() < kInFront * t) continue;
+      int x = 0, y = 0;
+      if (hidden.cellOf(p.head<2>() / t, x, y)) hidden.set(x, y);
+    }
+    hidden.fitWindow(1);
+    hidden = hidden.dilated().eroded();  // the sample's gaps, magnified on their way to the top
+  }
+
+  // Grown from the cells within the fitted footprint: through the top's cells, and through runs of
+  // at most max_run cells hidden, or thin at its height (the back that hides them), between them.
   Grid reached(centre.head<2>() - Eigen::Vector2f::Constant(half), params.cell, n);
+  std::vector<int16_t> left(static_cast<size_t>(n) * static_cast<size_t>(n), -1);  // the run left on arrival
+  const auto at_index = [n](int x, int y) { return static_cast<size_t>(y) * static_cast<size_t>(n) + static_cast<size_t>(x); };
   std::vector<std::pair<int, int>> frontier;
   for (int y = opened.lo().y(); y <= opened.hi().y(); ++y) {  // no cell outside the window is set
     for (int x = opened.lo().x(); x <= opened.hi().x(); ++x) {
       const Eigen::Vector2f at = opened.centre(x, y);
       if (opened.at(x, y) && in_footprint({at.x(), at.y(), top})) {
         reached.set(x, y);
+        left[at_index(x, y)] = static_cast<int16_t>(max_run);
         frontier.emplace_back(x, y);
       }
     }
@@ -197,12 +220,21 @@ TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, con
   while (!frontier.empty()) {
     const auto [x, y] = frontier.back();
     frontier.pop_back();
+    const int run = left[at_index(x, y)];
     for (int dy = -1; dy <= 1; ++dy) {
       for (int dx = -1; dx <= 1; ++dx) {
-        if (opened.at(x + dx, y + dy) && !reached.at(x + dx, y + dy)) {
-          reached.set(x + dx, y + dy);
-          frontier.emplace_back(x + dx, y + dy);
+        const int nx = x + dx, ny = y + dy;
+        if (nx < 0 || ny < 0 || nx >= n || ny >= n) continue;
+        int next = -1;
+        if (opened.at(nx, ny)) {
+          next = max_run;
+        } else if (run > 0 && (hidden.at(nx, ny) || closed.at(nx, ny))) {
+          next = run - 1;
         }
+        if (next <= left[at_index(nx, ny)]) continue;
+        left[at_index(nx, ny)] = static_cast<int16_t>(next);
+        if (opened.at(nx, ny)) reached.set(nx, ny);
+        frontier.emplace_back(nx, ny);
       }
     }
   }

@@ -10,8 +10,11 @@
 // manipulation in domestic environments", IROS 2009): the layer of measured points at that
 // height, closed over the holes of a sparse sample, opened to drop what is thin there (a chair's
 // backrest pushed to the table, a wall), grown from the fitted footprint, and boxed by the
-// tighter of the fitted heading and the layer's own main axis. Two hypotheses on one long top
-// then share its box and merge in suppression.h.
+// tighter of the fitted heading and the layer's own main axis. Where something in front of the top
+// hides a swath of it from the sensor, the top continues past the swath: the cells the sensor cannot
+// see are unknown, not empty, as an occupancy map's (Hornung, Wurm, Bennewitz, Stachniss and Burgard,
+// "OctoMap", Autonomous Robots 2013). Two hypotheses on one long top then share its box and merge in
+// suppression.h.
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/verification.h"
@@ -31,6 +34,11 @@ struct TopExtentParams {
   float below = 0.2f, above = 0.1f;
   int min_points = 10;
   float max_side = 6.0f;      // the top is grown within a square of this side about the fitted box (m)
+  // The top is grown across cells of its height that something measured between them and the
+  // sensor hides (a chair's back drawn up to the table, seen past it), as far as this (m) from
+  // measured top to measured top; what it reaches is boxed by its measured points only. Not in
+  // maps, whose made-up viewpoint sees nothing. 0: only across measured cells.
+  float max_hidden_run = 0.8f;
   // A top whose narrow side is outside the training shapes' narrow sides, give or take the priors'
   // slack, is dropped (withinFootprintPrior).
   bool footprint_prior = true;

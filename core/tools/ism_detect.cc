@@ -93,6 +93,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-footprint-prior", no_footprint_prior,
                "default preset: keep tables whose measured top is deeper or shallower than every training table's "
                "of given size");
+  bool no_hidden_top = false;
+  app.add_flag("--no-hidden-top", no_hidden_top,
+               "default preset: a table's box spans only the top measured in one piece, not across the swaths "
+               "something in front hides from the sensor");
   bool no_under_top = false;
   app.add_flag("--no-under-top", no_under_top,
                "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
@@ -141,6 +145,7 @@ int main(int argc, char** argv) {
     options.verify = !no_verify;
     options.scene_checks.top_extent.enabled = !no_top_extent;
     options.scene_checks.top_extent.footprint_prior = !no_footprint_prior;
+    if (no_hidden_top) options.scene_checks.top_extent.max_hidden_run = 0;
     options.scene_checks.seat_run.enabled = !no_seat_run;
     options.scene_checks.open_top.enabled = !no_open_top;
     if (no_upper_part) options.scene_checks.open_top.min_upper = 0;

@@ -134,6 +134,7 @@ int main(int argc, char** argv) {
       ->default_str("both");
   bool no_top_extent = false;
   bool no_footprint_prior = false;
+  bool no_hidden_top = false;
   bool keep_topless = false;
   bool no_seat_run = false;
   bool no_open_top = false;
@@ -172,6 +173,9 @@ int main(int argc, char** argv) {
     sub->add_flag("--no-footprint-prior", no_footprint_prior,
                   "default preset: keep tables whose measured top is deeper or shallower than every training table's "
                   "of given size (top_extent.h)");
+    sub->add_flag("--no-hidden-top", no_hidden_top,
+                  "default preset: a table's box spans only the top measured in one piece, not across the swaths "
+                  "something in front hides from the sensor (top_extent.h)");
   }
   std::string preset = "default";
   float min_confidence = ism::RecognitionOptions{}.min_confidence;
@@ -209,6 +213,7 @@ int main(int argc, char** argv) {
       ism::EvalRecognition recognition{ism::parseRecognitionPreset(preset), min_confidence};
       recognition.top_extent = !no_top_extent;
       recognition.footprint_prior = !no_footprint_prior;
+      recognition.hidden_top = !no_hidden_top;
       recognition.require_top = !keep_topless;
       recognition.seat_run = !no_seat_run;
       recognition.open_top = !no_open_top;
@@ -225,7 +230,7 @@ int main(int argc, char** argv) {
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
                             fit_terms, !keep_topless, !no_seat_run, !no_open_top, !no_upper_part, !no_level_top, !no_bare_floor,
-                            !no_under_top, !no_seat_area, !own_peak_support};
+                            !no_under_top, !no_seat_area, !own_peak_support, !no_hidden_top};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

@@ -127,6 +127,40 @@ TEST(TopExtent, WithoutATopTheFittedShapeStays) {
   EXPECT_TRUE(off.box.size.isApprox(fitted.size));
 }
 
+// The desk seen from a seated person's eye height past a chair drawn up to its near side: the
+// chair's back hides a swath of the top from the sensor, so the top is measured in two pieces.
+// The box spans both, across the hidden swath; with the run across hidden cells turned off it
+// stops at the swath. The cabinet beside the desk's end, whose gap the sensor sees, stays out.
+TEST(TopExtent, TheTopContinuesPastTheSwathAChairsBackHides) {
+  const Mesh chair = testing::syntheticFurniture("dining_chair", 0);
+  std::vector<SceneObject> objects{{"dining_table", desk(), 0, 0, 0},
+                                   {"dining_chair", chair, 0.3f, -0.55f, static_cast<float>(M_PI)},
+                                   {"", boxMesh({-0.3f, -0.3f, 0}, {0.3f, 0.3f, kTop}), 1.8f, 0, 0}};
+  SyntheticSceneParams params;
+  params.camera_eye = {0.3f, -3.0f, 1.15f};
+  params.camera_target = {0.0f, 0.0f, 0.5f};
+  params.floor_size = 8.0f;
+  const VerificationScene scene = makeVerificationScene(composeScene(objects, params).scene, knownFloor());
+  const auto extent = [&](float max_hidden_run) {
+    Hypothesis h = leftEnd();
+    TopExtentParams top;
+    top.max_hidden_run = max_hidden_run;
+    EXPECT_EQ(extendToTop(scene, h, top), TopFound::kFound);
+    return uprightBoxOf(h.box, Eigen::Matrix3f::Identity());
+  };
+  const UprightBox whole = extent(TopExtentParams{}.max_hidden_run);
+  EXPECT_NEAR(whole.size.x(), 2.4f, 0.12f);
+  EXPECT_NEAR(whole.size.y(), 0.8f, 0.12f);
+  EXPECT_NEAR(whole.center.x(), 0.0f, 0.06f);
+  EXPECT_LT(extent(0.0f).size.x(), 1.8f) << "the swath hidden behind the chair's back splits the measured top";
+  // A map has no sensor to hide anything from: its top is what it measured.
+  VerificationScene map = scene;
+  map.map = true;
+  Hypothesis h = leftEnd();
+  ASSERT_EQ(extendToTop(map, h), TopFound::kFound);
+  EXPECT_LT(uprightBoxOf(h.box, Eigen::Matrix3f::Identity()).size.x(), 1.8f);
+}
+
 TEST(TopExtent, TheFootprintPriorBoundsATopsDepthNotItsLength) {
   CategoryModel tables;
   for (const Eigen::Vector3f& size : {Eigen::Vector3f(1.1f, 0.7f, 0.75f), Eigen::Vector3f(1.24f, 1.24f, 0.74f)}) {
