@@ -9,6 +9,7 @@
 #include "core/gravity/viewpoint.h"
 #include "core/model/model_file.h"
 #include "core/recognition/suppression.h"
+#include "core/recognition/top_extent.h"
 #include "core/recognition/upright_boxes.h"
 #include "core/recognition/verification.h"
 
@@ -240,6 +241,32 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
   return all;
 }
 
+// The answers of a flat-topped category (top_extent.h), whose boxes span the table top the scene
+// measured, take the supporting keypoints of the category's peaks that were too weak to be
+// verified and whose centre their box holds: a long top's keypoints vote for centres all along it,
+// and one answer then stands for every peak the top gave, as for the peaks it merged
+// (SuppressionParams::merge_support). The boxes of chairs and couches are their fitted shapes',
+// which may hold a neighbour's weak peaks.
+void absorbWeakSupport(std::vector<Hypothesis>::iterator first, std::vector<Hypothesis>::iterator last,
+                       const std::vector<std::vector<Hypothesis>>& peaks, const std::vector<std::vector<bool>>& verified,
+                       const Eigen::Matrix3f& to_gravity) {
+  for (auto answer = first; answer != last; ++answer) {
+    const UprightBox box = uprightBoxOf(answer->box, to_gravity);
+    const float c = std::cos(box.yaw), s = std::sin(box.yaw);
+    for (size_t m = 0; m < peaks.size(); ++m) {
+      for (size_t i = 0; i < peaks[m].size(); ++i) {
+        if (verified[m][i]) continue;
+        const Eigen::Vector3f d = to_gravity * peaks[m][i].center - box.center;
+        const float along = c * d.x() + s * d.y(), across = -s * d.x() + c * d.y();
+        if (std::abs(along) <= box.size.x() / 2 && std::abs(across) <= box.size.y() / 2 &&
+            std::abs(d.z()) <= box.size.z() / 2) {
+          mergeSupport(*answer, peaks[m][i]);
+        }
+      }
+    }
+  }
+}
+
 // Default preset, per category: each model's peaks merged to one per object, and the models'
 // peaks grouped by object (ensemble.h). In each group that can reach min_confidence, with `scene`,
 // each model's peak is verified against it, until the models verified so far rule the group out,
@@ -311,6 +338,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       for (float r : groups[g].reach) unverified[g] += r;
     }
     std::vector<std::vector<size_t>> verified_groups(members.size());  // per model, most confident first
+    std::vector<std::vector<bool>> looked_at(members.size());  // per model and peak: verified
+    for (size_t m = 0; m < members.size(); ++m) looked_at[m].assign(own[m].size(), false);
     for (size_t m = 0; m < members.size(); ++m) {
       const Model& own_model = *members[m].model;
       const auto peakIn = [&](size_t g) -> Hypothesis& {
@@ -322,7 +351,9 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       for (size_t g = 0; g < groups.size(); ++g) {
         const bool open = (verified[g] + unverified[g]) / count >= static_cast<double>(lowest) - 1e-6;
         unverified[g] -= groups[g].reach[m];
-        if (groups[g].peaks.peak[m] >= 0 && open) sorted_group.push_back(g);
+        if (groups[g].peaks.peak[m] < 0 || !open) continue;
+        sorted_group.push_back(g);
+        looked_at[m][static_cast<size_t>(groups[g].peaks.peak[m])] = true;
       }
       std::stable_sort(sorted_group.begin(), sorted_group.end(),
                        [&](size_t a, size_t b) { return peakIn(a).confidence > peakIn(b).confidence; });
@@ -368,6 +399,7 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       }
     }
     // A group's answer: its most confident model's, at the mean of the models' confidences.
+    const size_t first_answer = answers.size();
     for (auto& answers_here : answered) {
       float sum = 0;
       std::optional<Hypothesis>* best = nullptr;
@@ -380,6 +412,11 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       Hypothesis h = std::move(**best);
       h.confidence = sum / count;
       answers.push_back(std::move(h));
+    }
+    if (view && options.suppression.merge_support && options.scene_checks.top_extent.enabled &&
+        flatTopped(category, options.scene_checks.top_extent)) {
+      absorbWeakSupport(answers.begin() + static_cast<std::ptrdiff_t>(first_answer), answers.end(), own, looked_at,
+                        to_gravity);
     }
   }
   return answers;

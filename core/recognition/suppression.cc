@@ -48,8 +48,8 @@ bool sameObject(const Hypothesis& winner, const UprightBox& winner_box, const Hy
   return shared < 0 || shared >= params.min_shared_surface;
 }
 
-// `from`'s supporting keypoints added to `into`'s, each once (both lists ascend by index, as the
-// Hough space makes them).
+}  // namespace
+
 void mergeSupport(Hypothesis& into, const Hypothesis& from) {
   if (from.support_indices.empty()) return;
   const bool positions = into.support_keypoints.size() == into.support_indices.size() &&
@@ -78,8 +78,6 @@ void mergeSupport(Hypothesis& into, const Hypothesis& from) {
   }
   into.support_centroid /= static_cast<float>(both.size());
 }
-
-}  // namespace
 
 std::vector<Hypothesis> suppressOverlaps(std::vector<Hypothesis> hypotheses, const Eigen::Matrix3f& to_gravity,
                                          const SuppressionParams& params) {

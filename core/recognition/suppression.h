@@ -20,11 +20,17 @@ struct SuppressionParams {
   bool shared_surface = true;
   // The supporting keypoints of the peaks a hypothesis absorbs of its own category join its own
   // (Hypothesis::support, support_keypoints, support_indices, support_centroid): one answer on a
-  // long table is supported by every peak its top gave. Off where the support still feeds the
-  // confidence (recognition's merge before verification, the calibration's), which learned it per
-  // peak.
+  // long table is supported by every peak its top gave. Recognition also gives a table's answer
+  // the support of the weaker, unverified peaks whose centre its box holds (recognizer.cc). Off
+  // where the support still feeds the confidence (recognition's merge before verification, the
+  // calibration's), which learned it per peak.
   bool merge_support = true;
 };
+
+// `from`'s supporting keypoints join `into`'s, each once (both lists ascend by index, as the Hough
+// space makes them); the centroid is made again from the positions when both carry them, else it
+// stays `into`'s.
+void mergeSupport(Hypothesis& into, const Hypothesis& from);
 
 // `hypotheses` in any order, with boxes in scene coordinates; `to_gravity` turns them into the
 // gravity frame (Gravity::toGravity). Returns the survivors, most confident first.

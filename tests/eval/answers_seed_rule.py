@@ -1,0 +1,84 @@
+#!/usr/bin/env python3
+"""What the service answers at its default operating point on the development scans, scored by
+the seed's rule: ism-detect --json (default options, clouds with --up 0,0,1) on the Kinect frames,
+the sample scene and the SUN RGB-D and ScanNet clouds, each answer right when its category's class
+matches an object's not yet found and the centroid of its supporting keypoints lies within a
+quarter of that object's longest edge of its centre, as ../shared/tools/score_detect.py scores one
+frame. ism-eval real recognises down to confidence 0.01 and counts the answers above the threshold;
+this runs recognition at the threshold itself, as a client does.
+
+    /usr/bin/python3 tests/eval/answers_seed_rule.py --bin build/core -m MODEL [--out DIR] [-- ISM-DETECT OPTIONS]
+
+Prints r = TP / (objects + FP) per class with (TP, FP), and false answers per scan. Only the
+Python standard library is used.
+"""
+import argparse
+import glob
+import json
+import math
+import os
+import subprocess
+import sys
+import tempfile
+from concurrent.futures import ThreadPoolExecutor
+
+ROOT = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
+REAL = os.path.join(ROOT, "..", "shared", "data", "real")
+CLASS = {"office_chair": "chair", "dining_chair": "chair", "chair": "chair", "dining_table": "table|desk",
+         "table": "table|desk", "desk": "table|desk", "couch": "sofa", "sofa": "sofa"}
+
+
+def scenes():
+    frames = [os.path.join(REAL, "kinect", n) for n in ("tum_desk", "office1")]
+    frames.append(os.path.join(ROOT, "models", "sample", "living_room"))
+    clouds = sorted(p[:-4] for d in ("sunrgbd", "scannet") for p in glob.glob(os.path.join(REAL, d, "*.pcd")))
+    return [(f, []) for f in frames] + [(c, ["--up", "0,0,1"]) for c in clouds]
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", required=True, help="folder holding ism-detect")
+    ap.add_argument("-m", "--model", required=True)
+    ap.add_argument("--out", help="keep each scene's ism-detect --json here")
+    ap.add_argument("detect_options", nargs="*", help="after --: more ism-detect options")
+    args = ap.parse_args()
+    if not os.path.isdir(REAL):
+        sys.exit(f"no development scans at {REAL} (../shared/docs/DATASETS.md)")
+    out = args.out or tempfile.mkdtemp(prefix="answers_")
+    os.makedirs(out, exist_ok=True)
+
+    def detect(scene):
+        stem, extra = scene
+        path = os.path.join(out, os.path.basename(stem) + ".json")
+        with open(path, "w") as f:
+            subprocess.run([os.path.join(args.bin, "ism-detect"), "-m", args.model, "--json", *extra,
+                            *args.detect_options, stem + ".pcd"], check=True, stdout=f, stderr=subprocess.DEVNULL)
+        return stem, path
+
+    totals = {c: [0, 0, 0] for c in ("chair", "table|desk", "sofa")}  # TP, FP, objects
+    count = 0
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        for stem, path in pool.map(detect, scenes()):
+            count += 1
+            with open(stem + ".json") as f:
+                objects = [o for o in json.load(f)["objects"] if o["category"] in CLASS]
+            with open(path) as f:
+                answers = json.load(f)[0]["hypotheses"]
+            for o in objects:
+                totals[CLASS[o["category"]]][2] += 1
+            found = [False] * len(objects)
+            for h in answers:
+                cls = CLASS[h["category"]]
+                hit = next((i for i, o in enumerate(objects) if not found[i] and CLASS[o["category"]] == cls and
+                            math.dist(h["support_centroid"], o["center"]) < max(o["size"]) / 4), None)
+                if hit is None:
+                    totals[cls][1] += 1
+                else:
+                    found[hit] = True
+                    totals[cls][0] += 1
+    print("  ".join(f"{c} r {100 * tp / (n + fp):.1f} ({tp}, {fp})" for c, (tp, fp, n) in totals.items()),
+          f" false answers per scan {sum(v[1] for v in totals.values()) / count:.2f} ({count} scans)")
+
+
+if __name__ == "__main__":
+    main()
