@@ -84,6 +84,11 @@ OrientedBox UprightBox::toScene(const Eigen::Matrix3f& to_gravity) const {
   return box;
 }
 
+bool insideFootprint(const Eigen::Vector3f& p, const UprightBox& box) {
+  const Eigen::Vector2f local = Eigen::Rotation2Df(-box.yaw) * (p.head<2>() - box.center.head<2>());
+  return std::abs(local.x()) <= box.size.x() / 2 && std::abs(local.y()) <= box.size.y() / 2;
+}
+
 UprightBox uprightBoxOf(const OrientedBox& box, const Eigen::Matrix3f& to_gravity) {
   const Eigen::Matrix3f axes = to_gravity * box.rotation.toRotationMatrix();
   int horizontal = 0;

@@ -25,6 +25,9 @@ struct UprightBox {
 // such box otherwise.
 UprightBox uprightBoxOf(const OrientedBox& box, const Eigen::Matrix3f& to_gravity);
 
+// Whether `p` (gravity frame) lies over the box's footprint, at any height.
+bool insideFootprint(const Eigen::Vector3f& p, const UprightBox& box);
+
 // Intersection over union of the two boxes' volumes; 0 when either is empty.
 float intersectionOverUnion(const UprightBox& a, const UprightBox& b);
 

@@ -6,6 +6,7 @@
 #include <iterator>
 
 #include "core/common/error.h"
+#include "core/common/upright_box.h"
 #include "core/gravity/viewpoint.h"
 #include "core/model/model_file.h"
 #include "core/recognition/suppression.h"
@@ -252,14 +253,11 @@ void absorbWeakSupport(std::vector<Hypothesis>::iterator first, std::vector<Hypo
                        const Eigen::Matrix3f& to_gravity) {
   for (auto answer = first; answer != last; ++answer) {
     const UprightBox box = uprightBoxOf(answer->box, to_gravity);
-    const float c = std::cos(box.yaw), s = std::sin(box.yaw);
     for (size_t m = 0; m < peaks.size(); ++m) {
       for (size_t i = 0; i < peaks[m].size(); ++i) {
         if (verified[m][i]) continue;
-        const Eigen::Vector3f d = to_gravity * peaks[m][i].center - box.center;
-        const float along = c * d.x() + s * d.y(), across = -s * d.x() + c * d.y();
-        if (std::abs(along) <= box.size.x() / 2 && std::abs(across) <= box.size.y() / 2 &&
-            std::abs(d.z()) <= box.size.z() / 2) {
+        const Eigen::Vector3f center = to_gravity * peaks[m][i].center;
+        if (insideFootprint(center, box) && std::abs(center.z() - box.center.z()) <= box.size.z() / 2) {
           mergeSupport(*answer, peaks[m][i]);
         }
       }

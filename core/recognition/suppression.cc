@@ -10,11 +10,6 @@
 namespace ism {
 namespace {
 
-bool insideFootprint(const Eigen::Vector3f& p, const UprightBox& box) {
-  const Eigen::Vector2f local = Eigen::Rotation2Df(-box.yaw) * (p.head<2>() - box.center.head<2>());
-  return std::abs(local.x()) <= box.size.x() / 2 && std::abs(local.y()) <= box.size.y() / 2;
-}
-
 // The share of `h`'s explained surface that `winner` explains too; -1 when either is unverified.
 float sharedSurface(const Hypothesis& winner, const Hypothesis& h) {
   if (!winner.verification || !h.verification || h.verification->explained.empty()) return -1;

@@ -52,6 +52,15 @@ TEST(UprightBox, IouFollowsYaw) {
   EXPECT_NEAR(intersectionOverUnion(plank, box({0, 0, 0.5f}, {2, 0.5f, 1}, static_cast<float>(M_PI))), 1.0f, 1e-5f);
 }
 
+// A 2 x 0.5 plank turned by 90 degrees covers x in [-0.25, 0.25] and y in [-1, 1], at any height.
+TEST(UprightBox, FootprintFollowsYaw) {
+  const UprightBox plank = box({1, 1, 0.5f}, {2, 0.5f, 1}, static_cast<float>(M_PI / 2));
+  EXPECT_TRUE(insideFootprint({1, 1.9f, 0.5f}, plank));
+  EXPECT_TRUE(insideFootprint({1.2f, 0.1f, 7}, plank)) << "above the box: its footprint still";
+  EXPECT_FALSE(insideFootprint({1.9f, 1, 0.5f}, plank)) << "along the unturned plank's length";
+  EXPECT_FALSE(insideFootprint({1, 2.1f, 0.5f}, plank));
+}
+
 TEST(UprightBox, GravityRotationPutsUpOnZ) {
   for (const Eigen::Vector3f up : {Eigen::Vector3f(0, 0, 1), Eigen::Vector3f(0.01f, -0.88f, -0.47f),
                                    Eigen::Vector3f(1, 0, 0), Eigen::Vector3f(0, -1, 0)}) {
