@@ -243,23 +243,21 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
 }
 
 // The answers of a flat-topped category (top_extent.h), whose boxes span the table top the scene
-// measured, take the supporting keypoints of the category's peaks that were too weak to be
-// verified and whose centre their box holds: a long top's keypoints vote for centres all along it,
-// and one answer then stands for every peak the top gave, as for the peaks it merged
-// (SuppressionParams::merge_support). The boxes of chairs and couches are their fitted shapes',
-// which may hold a neighbour's weak peaks.
+// measured, take the supporting keypoints of the category's peaks that answer nothing of their
+// own and whose centre their box holds: those too weak to be verified, those verified that fell
+// below min_confidence, duplicated another or failed the scene's checks, and an ensemble's other
+// models' peaks of an answered group. A long top's keypoints vote for centres all along it, and
+// one answer then stands for every peak the top gave, as for the peaks it merged
+// (SuppressionParams::merge_support), whatever min_confidence leaves unverified. The boxes of
+// chairs and couches are their fitted shapes', which may hold a neighbour's weak peaks.
 void absorbWeakSupport(std::vector<Hypothesis>::iterator first, std::vector<Hypothesis>::iterator last,
-                       const std::vector<std::vector<Hypothesis>>& peaks, const std::vector<std::vector<bool>>& verified,
-                       const Eigen::Matrix3f& to_gravity) {
+                       const std::vector<Hypothesis>& weak, const Eigen::Matrix3f& to_gravity) {
   for (auto answer = first; answer != last; ++answer) {
     const UprightBox box = uprightBoxOf(answer->box, to_gravity);
-    for (size_t m = 0; m < peaks.size(); ++m) {
-      for (size_t i = 0; i < peaks[m].size(); ++i) {
-        if (verified[m][i]) continue;
-        const Eigen::Vector3f center = to_gravity * peaks[m][i].center;
-        if (insideFootprint(center, box) && std::abs(center.z() - box.center.z()) <= box.size.z() / 2) {
-          mergeSupport(*answer, peaks[m][i]);
-        }
+    for (const Hypothesis& peak : weak) {
+      const Eigen::Vector3f center = to_gravity * peak.center;
+      if (insideFootprint(center, box) && std::abs(center.z() - box.center.z()) <= box.size.z() / 2) {
+        mergeSupport(*answer, peak);
       }
     }
   }
@@ -293,6 +291,9 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
   std::vector<Hypothesis> answers;
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
+    const bool absorb = view && options.suppression.merge_support && options.scene_checks.top_extent.enabled &&
+                        flatTopped(category, options.scene_checks.top_extent);
+    std::vector<Hypothesis> weak;  // peaks that answer nothing of their own (absorbWeakSupport)
     std::vector<std::vector<Hypothesis>> own(members.size());
     for (size_t m = 0; m < members.size(); ++m) {
       for (auto& h : peaks[m]) {
@@ -363,10 +364,16 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       }
       for (size_t i = 0; i < sorted.size(); ++i) {
         Hypothesis& h = sorted[i];
-        if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
+        if (options.one_answer_per_object && h.verification && h.verification->duplicate()) {
+          if (absorb) weak.push_back(std::move(h));
+          continue;
+        }
         if (view) {
           h.confidence = members[m].plan.confidence[s](h);
-          if (h.confidence < own_lowest) continue;
+          if (h.confidence < own_lowest) {
+            if (absorb) weak.push_back(std::move(h));
+            continue;
+          }
         }
         verified[sorted_group[i]] += h.confidence;
         answered[sorted_group[i]][m] = std::move(h);
@@ -388,6 +395,7 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
           const SceneVerdict verdict = (*checks)(*view, *h, to_gravity);
           if (verdict == SceneVerdict::kRejected) {
             h->passed_selection = false;
+            if (absorb) weak.push_back(*h);
             if (m == 0) result.rejected.push_back(std::move(*h));
             h.reset();
             continue;
@@ -406,15 +414,24 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
         sum += a->confidence;
         if (best == nullptr || a->confidence > (*best)->confidence) best = &a;
       }
-      if (best == nullptr || sum / count < lowest) continue;
-      Hypothesis h = std::move(**best);
-      h.confidence = sum / count;
-      answers.push_back(std::move(h));
+      if (best != nullptr && sum / count >= lowest) {
+        Hypothesis h = std::move(**best);
+        h.confidence = sum / count;
+        answers.push_back(std::move(h));
+        best->reset();
+      }
+      if (!absorb) continue;
+      for (auto& a : answers_here) {
+        if (a) weak.push_back(std::move(*a));  // the other models' peaks of an answered group too
+      }
     }
-    if (view && options.suppression.merge_support && options.scene_checks.top_extent.enabled &&
-        flatTopped(category, options.scene_checks.top_extent)) {
-      absorbWeakSupport(answers.begin() + static_cast<std::ptrdiff_t>(first_answer), answers.end(), own, looked_at,
-                        to_gravity);
+    if (absorb) {
+      for (size_t m = 0; m < members.size(); ++m) {
+        for (size_t i = 0; i < own[m].size(); ++i) {
+          if (!looked_at[m][i]) weak.push_back(std::move(own[m][i]));
+        }
+      }
+      absorbWeakSupport(answers.begin() + static_cast<std::ptrdiff_t>(first_answer), answers.end(), weak, to_gravity);
     }
   }
   return answers;
