@@ -63,6 +63,8 @@ int main(int argc, char** argv) {
   app.add_option("--picture", picture,
                  "write the scene as PNG with the boxes and the training shapes verification fitted drawn (one input only)");
   app.add_option("--debug-ply", debug_ply, "write keypoints, votes and centres as PLY (one input only)");
+  app.add_flag("--keypoints", options.return_keypoints,
+               "with --json, each hypothesis' supporting keypoints (support_keypoints), as ism-client's --keypoints");
   app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
   bool no_verify = false;
   app.add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified against the scene");

@@ -233,6 +233,30 @@ TEST_F(Tools, ATablesSupportIsTheSameAtEveryOperatingPoint) {
   }
 }
 
+// --keypoints puts each answer's supporting keypoints in the JSON: as many as its support, their
+// mean its support centroid. Without it they are left out.
+TEST_F(Tools, DetectListsTheSupportingKeypointsWhenAsked) {
+  const std::string sample = std::string(ISM_SOURCE_DIR) + "/models/sample/living_room.pcd";
+  const Outcome with = run("ism-detect", {"-m", kModel, "--json", "--keypoints", sample});
+  ASSERT_EQ(with.exit_code, 0) << with.err;
+  const nlohmann::json answers = nlohmann::json::parse(with.out)[0]["hypotheses"];
+  ASSERT_FALSE(answers.empty());
+  for (const auto& h : answers) {
+    ASSERT_TRUE(h.contains("support_keypoints")) << h["category"];
+    const auto& keypoints = h["support_keypoints"];
+    ASSERT_EQ(keypoints.size(), h["support"].get<size_t>()) << h["category"];
+    for (int axis = 0; axis < 3; ++axis) {
+      double sum = 0;
+      for (const auto& p : keypoints) sum += p[axis].get<double>();
+      EXPECT_NEAR(sum / static_cast<double>(keypoints.size()), h["support_centroid"][axis].get<double>(), 1e-4)
+          << h["category"] << " axis " << axis;
+    }
+  }
+  const Outcome without = run("ism-detect", {"-m", kModel, "--json", sample});
+  ASSERT_EQ(without.exit_code, 0) << without.err;
+  for (const auto& h : nlohmann::json::parse(without.out)[0]["hypotheses"]) EXPECT_FALSE(h.contains("support_keypoints"));
+}
+
 TEST_F(Tools, EvalNamesWhatIsMissingOrMalformed) {
   expectRefused(run("ism-eval", {"real", "-m", kModel, (dir_ / "nowhere").string()}),
                 {"ism-eval: not found", "no ground truth", "nowhere.json"});
