@@ -52,7 +52,7 @@ TEST(UprightBox, IouFollowsYaw) {
   EXPECT_NEAR(intersectionOverUnion(plank, box({0, 0, 0.5f}, {2, 0.5f, 1}, static_cast<float>(M_PI))), 1.0f, 1e-5f);
 }
 
-// A 2 x 0.5 plank turned by 90 degrees covers x in [-0.25, 0.25] and y in [-1, 1], at any height.
+// A 2 x 0.5 plank at (1, 1) turned by 90 degrees covers x in [0.75, 1.25] and y in [0, 2], at any height.
 TEST(UprightBox, FootprintFollowsYaw) {
   const UprightBox plank = box({1, 1, 0.5f}, {2, 0.5f, 1}, static_cast<float>(M_PI / 2));
   EXPECT_TRUE(insideFootprint({1, 1.9f, 0.5f}, plank));
