@@ -243,21 +243,25 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
 }
 
 // The answers of a flat-topped category (top_extent.h), whose boxes span the table top the scene
-// measured, take the supporting keypoints of the category's peaks that answer nothing of their
-// own and whose centre their box holds: those too weak to be verified, those verified that fell
-// below min_confidence, duplicated another or failed the scene's checks, and an ensemble's other
-// models' peaks of an answered group. A long top's keypoints vote for centres all along it, and
-// one answer then stands for every peak the top gave, as for the peaks it merged
-// (SuppressionParams::merge_support), whatever min_confidence leaves unverified. The boxes of
-// chairs and couches are their fitted shapes', which may hold a neighbour's weak peaks.
+// measured, take the supporting keypoints of the category's peaks (`peaks`, per model) that answer
+// nothing of their own (answering[m][i] false) and whose centre their box holds: verified or not,
+// so that whatever min_confidence leaves unverified, below it, or refused by the scene's checks
+// lends the same support. A long top's keypoints vote for centres all along it, and one answer
+// then stands for every peak the top gave, as for the peaks it merged
+// (SuppressionParams::merge_support). The boxes of chairs and couches are their fitted shapes',
+// which may hold a neighbour's weak peaks.
 void absorbWeakSupport(std::vector<Hypothesis>::iterator first, std::vector<Hypothesis>::iterator last,
-                       const std::vector<Hypothesis>& weak, const Eigen::Matrix3f& to_gravity) {
+                       const std::vector<std::vector<Hypothesis>>& peaks,
+                       const std::vector<std::vector<bool>>& answering, const Eigen::Matrix3f& to_gravity) {
   for (auto answer = first; answer != last; ++answer) {
     const UprightBox box = uprightBoxOf(answer->box, to_gravity);
-    for (const Hypothesis& peak : weak) {
-      const Eigen::Vector3f center = to_gravity * peak.center;
-      if (insideFootprint(center, box) && std::abs(center.z() - box.center.z()) <= box.size.z() / 2) {
-        mergeSupport(*answer, peak);
+    for (size_t m = 0; m < peaks.size(); ++m) {
+      for (size_t i = 0; i < peaks[m].size(); ++i) {
+        if (answering[m][i]) continue;
+        const Eigen::Vector3f center = to_gravity * peaks[m][i].center;
+        if (insideFootprint(center, box) && std::abs(center.z() - box.center.z()) <= box.size.z() / 2) {
+          mergeSupport(*answer, peaks[m][i]);
+        }
       }
     }
   }
@@ -293,7 +297,6 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
     const bool absorb = view && options.suppression.merge_support && options.scene_checks.top_extent.enabled &&
                         flatTopped(category, options.scene_checks.top_extent);
-    std::vector<Hypothesis> weak;  // peaks that answer nothing of their own (absorbWeakSupport)
     std::vector<std::vector<Hypothesis>> own(members.size());
     for (size_t m = 0; m < members.size(); ++m) {
       for (auto& h : peaks[m]) {
@@ -301,6 +304,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       }
       if (options.one_answer_per_object) own[m] = suppressOverlaps(std::move(own[m]), to_gravity, before_confidence);
     }
+    // Verification moves the peaks out of `own`; absorbWeakSupport reads them all, as they were.
+    const std::vector<std::vector<Hypothesis>> all_peaks = absorb ? own : std::vector<std::vector<Hypothesis>>{};
     // Groups that cannot reach `lowest` whatever the fits are not looked at, most confident first.
     struct Group {
       float confidence = 0;
@@ -337,8 +342,6 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       for (float r : groups[g].reach) unverified[g] += r;
     }
     std::vector<std::vector<size_t>> verified_groups(members.size());  // per model, most confident first
-    std::vector<std::vector<bool>> looked_at(members.size());  // per model and peak: verified
-    for (size_t m = 0; m < members.size(); ++m) looked_at[m].assign(own[m].size(), false);
     for (size_t m = 0; m < members.size(); ++m) {
       const Model& own_model = *members[m].model;
       const auto peakIn = [&](size_t g) -> Hypothesis& {
@@ -352,7 +355,6 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
         unverified[g] -= groups[g].reach[m];
         if (groups[g].peaks.peak[m] < 0 || !open) continue;
         sorted_group.push_back(g);
-        looked_at[m][static_cast<size_t>(groups[g].peaks.peak[m])] = true;
       }
       std::stable_sort(sorted_group.begin(), sorted_group.end(),
                        [&](size_t a, size_t b) { return peakIn(a).confidence > peakIn(b).confidence; });
@@ -364,16 +366,10 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
       }
       for (size_t i = 0; i < sorted.size(); ++i) {
         Hypothesis& h = sorted[i];
-        if (options.one_answer_per_object && h.verification && h.verification->duplicate()) {
-          if (absorb) weak.push_back(std::move(h));
-          continue;
-        }
+        if (options.one_answer_per_object && h.verification && h.verification->duplicate()) continue;
         if (view) {
           h.confidence = members[m].plan.confidence[s](h);
-          if (h.confidence < own_lowest) {
-            if (absorb) weak.push_back(std::move(h));
-            continue;
-          }
+          if (h.confidence < own_lowest) continue;
         }
         verified[sorted_group[i]] += h.confidence;
         answered[sorted_group[i]][m] = std::move(h);
@@ -395,7 +391,6 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
           const SceneVerdict verdict = (*checks)(*view, *h, to_gravity);
           if (verdict == SceneVerdict::kRejected) {
             h->passed_selection = false;
-            if (absorb) weak.push_back(*h);
             if (m == 0) result.rejected.push_back(std::move(*h));
             h.reset();
             continue;
@@ -406,32 +401,26 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
     }
     // A group's answer: its most confident model's, at the mean of the models' confidences.
     const size_t first_answer = answers.size();
-    for (auto& answers_here : answered) {
+    std::vector<std::vector<bool>> answering(members.size());  // per model and peak of all_peaks
+    for (size_t m = 0; m < members.size(); ++m) answering[m].assign(absorb ? own[m].size() : 0, false);
+    for (size_t g = 0; g < groups.size(); ++g) {
       float sum = 0;
-      std::optional<Hypothesis>* best = nullptr;
-      for (auto& a : answers_here) {
+      size_t best = members.size();
+      for (size_t m = 0; m < members.size(); ++m) {
+        const std::optional<Hypothesis>& a = answered[g][m];
         if (!a) continue;
         sum += a->confidence;
-        if (best == nullptr || a->confidence > (*best)->confidence) best = &a;
+        if (best == members.size() || a->confidence > answered[g][best]->confidence) best = m;
       }
-      if (best != nullptr && sum / count >= lowest) {
-        Hypothesis h = std::move(**best);
-        h.confidence = sum / count;
-        answers.push_back(std::move(h));
-        best->reset();
-      }
-      if (!absorb) continue;
-      for (auto& a : answers_here) {
-        if (a) weak.push_back(std::move(*a));  // the other models' peaks of an answered group too
-      }
+      if (best == members.size() || sum / count < lowest) continue;
+      Hypothesis h = std::move(*answered[g][best]);
+      h.confidence = sum / count;
+      answers.push_back(std::move(h));
+      if (absorb) answering[best][static_cast<size_t>(groups[g].peaks.peak[best])] = true;
     }
     if (absorb) {
-      for (size_t m = 0; m < members.size(); ++m) {
-        for (size_t i = 0; i < own[m].size(); ++i) {
-          if (!looked_at[m][i]) weak.push_back(std::move(own[m][i]));
-        }
-      }
-      absorbWeakSupport(answers.begin() + static_cast<std::ptrdiff_t>(first_answer), answers.end(), weak, to_gravity);
+      absorbWeakSupport(answers.begin() + static_cast<std::ptrdiff_t>(first_answer), answers.end(), all_peaks,
+                        answering, to_gravity);
     }
   }
   return answers;
