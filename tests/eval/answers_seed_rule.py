@@ -7,10 +7,16 @@ quarter of that object's longest edge of its centre, as ../shared/tools/score_de
 frame. ism-eval real recognises down to confidence 0.01 and counts the answers above the threshold;
 this runs recognition at the threshold itself, as a client does.
 
-    /usr/bin/python3 tests/eval/answers_seed_rule.py --bin build/core -m MODEL [--out DIR] [-- ISM-DETECT OPTIONS]
+    /usr/bin/python3 tests/eval/answers_seed_rule.py --bin build/core -m MODEL [--out DIR] [--objects]
+        [-- ISM-DETECT OPTIONS]
 
-Prints r = TP / (objects + FP) per class with (TP, FP), and false answers per scan. Only the
-Python standard library is used.
+Prints r = TP / (objects + FP) per class with (TP, FP), and false answers per scan. With
+--objects, first a line per object (its scan, class and size; its class's most confident answer
+right by the seed's rule, and the most confident one whose box centre lies within half the
+object's longest edge, "-" for none; the most confident answer of any class there) and a line per
+false answer (its nearest object, how far its box centre and its support centroid lie from it):
+with `-- --min-confidence 0.01`, where the candidates of each object stand. Only the Python
+standard library is used.
 """
 import argparse
 import glob
@@ -35,11 +41,38 @@ def scenes():
     return [(f, []) for f in frames] + [(c, ["--up", "0,0,1"]) for c in clouds]
 
 
+def conf(h):
+    return "-" if h is None else f"{h['category']} {h['confidence']:.2f}"
+
+
+def list_objects(scan, objects, answers):
+    """Each object's most confident answers: of its class by the seed's rule, of its class by box
+    centre, of any class by box centre."""
+    for o in objects:
+        cls, reach = CLASS[o["category"]], max(o["size"])
+        near = [h for h in answers if math.dist(h["center"], o["center"]) < reach / 2]
+        rule = [h for h in answers if CLASS[h["category"]] == cls and
+                math.dist(h["support_centroid"], o["center"]) < reach / 4]
+        best = lambda hs: max(hs, key=lambda h: h["confidence"], default=None)
+        print(f"object {scan} {cls} size {'x'.join(f'{v:.2f}' for v in o['size'])}: rule {conf(best(rule))}"
+              f" | box {conf(best([h for h in near if CLASS[h['category']] == cls]))} | any {conf(best(near))}")
+
+
+def list_false(scan, h, objects):
+    """A false answer, beside its nearest object."""
+    o = min(objects, key=lambda o: math.dist(o["center"], h["center"]), default=None)
+    where = "no object" if o is None else (
+        f"nearest {o['category']} size {'x'.join(f'{v:.2f}' for v in o['size'])} box centre "
+        f"{math.dist(o['center'], h['center']):.2f} m, support centroid {math.dist(o['center'], h['support_centroid']):.2f} m")
+    print(f"false {scan} {conf(h)}: {where}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", required=True, help="folder holding ism-detect")
     ap.add_argument("-m", "--model", required=True)
     ap.add_argument("--out", help="keep each scene's ism-detect --json here")
+    ap.add_argument("--objects", action="store_true", help="list each object's best answers and each false answer")
     ap.add_argument("detect_options", nargs="*", help="after --: more ism-detect options")
     args = ap.parse_args()
     if not os.path.isdir(REAL):
@@ -73,9 +106,13 @@ def main():
                             math.dist(h["support_centroid"], o["center"]) < max(o["size"]) / 4), None)
                 if hit is None:
                     totals[cls][1] += 1
+                    if args.objects:
+                        list_false(os.path.basename(stem), h, objects)
                 else:
                     found[hit] = True
                     totals[cls][0] += 1
+            if args.objects:
+                list_objects(os.path.basename(stem), objects, answers)
     print("  ".join(f"{c} r {100 * tp / (n + fp):.1f} ({tp}, {fp})" for c, (tp, fp, n) in totals.items()),
           f" false answers per scan {sum(v[1] for v in totals.values()) / count:.2f} ({count} scans)")
 
