@@ -34,8 +34,10 @@ struct Verification {
   int object = -1;     // the shape's training object (CategoryModel::objects)
   float yaw = 0;       // its heading about up in the gravity frame (rad)
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // its box centre, scene coordinates
-  // The measured surface the best pose explains: 5 cm cubes of the gravity frame, sorted. Two
-  // hypotheses of different categories on one object explain the same surface (suppression.h).
+  // The surface the best pose explains: 5 cm cubes of the gravity frame, sorted. In a frame, the
+  // cube of the measured point behind each agreeing shape pixel; in a map, the cube of each shape
+  // point with a measured point within about a voxel. Two hypotheses of different categories on
+  // one object explain the same surface (suppression.h).
   std::vector<uint64_t> explained;
 };
 
