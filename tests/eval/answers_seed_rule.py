@@ -41,8 +41,19 @@ def scenes():
     return [(f, []) for f in frames] + [(c, ["--up", "0,0,1"]) for c in clouds]
 
 
+def right_by_rule(h, o):
+    """The seed's rule: the answer's class is the object's, its support centroid within a quarter of
+    the object's longest edge of its centre."""
+    return CLASS[h["category"]] == CLASS[o["category"]] and \
+        math.dist(h["support_centroid"], o["center"]) < max(o["size"]) / 4
+
+
 def conf(h):
     return "-" if h is None else f"{h['category']} {h['confidence']:.2f}"
+
+
+def size(o):
+    return "x".join(f"{v:.2f}" for v in o["size"])
 
 
 def list_objects(scan, objects, answers):
@@ -51,10 +62,9 @@ def list_objects(scan, objects, answers):
     for o in objects:
         cls, reach = CLASS[o["category"]], max(o["size"])
         near = [h for h in answers if math.dist(h["center"], o["center"]) < reach / 2]
-        rule = [h for h in answers if CLASS[h["category"]] == cls and
-                math.dist(h["support_centroid"], o["center"]) < reach / 4]
+        rule = [h for h in answers if right_by_rule(h, o)]
         best = lambda hs: max(hs, key=lambda h: h["confidence"], default=None)
-        print(f"object {scan} {cls} size {'x'.join(f'{v:.2f}' for v in o['size'])}: rule {conf(best(rule))}"
+        print(f"object {scan} {cls} size {size(o)}: rule {conf(best(rule))}"
               f" | box {conf(best([h for h in near if CLASS[h['category']] == cls]))} | any {conf(best(near))}")
 
 
@@ -62,7 +72,7 @@ def list_false(scan, h, objects):
     """A false answer, beside its nearest object."""
     o = min(objects, key=lambda o: math.dist(o["center"], h["center"]), default=None)
     where = "no object" if o is None else (
-        f"nearest {o['category']} size {'x'.join(f'{v:.2f}' for v in o['size'])} box centre "
+        f"nearest {o['category']} size {size(o)} box centre "
         f"{math.dist(o['center'], h['center']):.2f} m, support centroid {math.dist(o['center'], h['support_centroid']):.2f} m")
     print(f"false {scan} {conf(h)}: {where}")
 
@@ -102,8 +112,7 @@ def main():
             found = [False] * len(objects)
             for h in answers:
                 cls = CLASS[h["category"]]
-                hit = next((i for i, o in enumerate(objects) if not found[i] and CLASS[o["category"]] == cls and
-                            math.dist(h["support_centroid"], o["center"]) < max(o["size"]) / 4), None)
+                hit = next((i for i, o in enumerate(objects) if not found[i] and right_by_rule(h, o)), None)
                 if hit is None:
                     totals[cls][1] += 1
                     if args.objects:
