@@ -48,6 +48,34 @@ def right_by_rule(h, o):
         math.dist(h["support_centroid"], o["center"]) < max(o["size"]) / 4
 
 
+CLASSES = ("chair", "table|desk", "sofa")
+
+
+def tally(totals, objects, answers):
+    """Adds one scan to `totals` (per class: true answers, false answers, objects), its answers
+    matched greedily in their order by the seed's rule, each object found once; returns the false
+    answers."""
+    for o in objects:
+        totals[CLASS[o["category"]]][2] += 1
+    found = [False] * len(objects)
+    false = []
+    for h in answers:
+        cls = CLASS[h["category"]]
+        hit = next((i for i, o in enumerate(objects) if not found[i] and right_by_rule(h, o)), None)
+        if hit is None:
+            totals[cls][1] += 1
+            false.append(h)
+        else:
+            found[hit] = True
+            totals[cls][0] += 1
+    return false
+
+
+def r_text(tp, fp, objects):
+    """r = TP / (objects + FP) in per cent, with the true and false answers."""
+    return f"{100 * tp / (objects + fp):.1f} ({tp}, {fp})"
+
+
 def conf(h):
     return "-" if h is None else f"{h['category']} {h['confidence']:.2f}"
 
@@ -98,7 +126,7 @@ def main():
                             *args.detect_options, stem + ".pcd"], check=True, stdout=f, stderr=subprocess.DEVNULL)
         return stem, path
 
-    totals = {c: [0, 0, 0] for c in ("chair", "table|desk", "sofa")}  # TP, FP, objects
+    totals = {c: [0, 0, 0] for c in CLASSES}  # TP, FP, objects
     count = 0
     with ThreadPoolExecutor(max_workers=2) as pool:
         for stem, path in pool.map(detect, scenes()):
@@ -107,22 +135,12 @@ def main():
                 objects = [o for o in json.load(f)["objects"] if o["category"] in CLASS]
             with open(path) as f:
                 answers = json.load(f)[0]["hypotheses"]
-            for o in objects:
-                totals[CLASS[o["category"]]][2] += 1
-            found = [False] * len(objects)
-            for h in answers:
-                cls = CLASS[h["category"]]
-                hit = next((i for i, o in enumerate(objects) if not found[i] and right_by_rule(h, o)), None)
-                if hit is None:
-                    totals[cls][1] += 1
-                    if args.objects:
-                        list_false(os.path.basename(stem), h, objects)
-                else:
-                    found[hit] = True
-                    totals[cls][0] += 1
+            false = tally(totals, objects, answers)
             if args.objects:
+                for h in false:
+                    list_false(os.path.basename(stem), h, objects)
                 list_objects(os.path.basename(stem), objects, answers)
-    print("  ".join(f"{c} r {100 * tp / (n + fp):.1f} ({tp}, {fp})" for c, (tp, fp, n) in totals.items()),
+    print("  ".join(f"{c} r {r_text(*counts)}" for c, counts in totals.items()),
           f" false answers per scan {sum(v[1] for v in totals.values()) / count:.2f} ({count} scans)")
 
 

@@ -26,9 +26,7 @@ import sys
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from answers_seed_rule import CLASS, right_by_rule, scenes  # noqa: E402
-
-CLASSES = ("chair", "table|desk", "sofa")
+from answers_seed_rule import CLASS, CLASSES, r_text, right_by_rule, scenes, tally  # noqa: E402
 
 
 def load(folder):
@@ -48,20 +46,9 @@ def r_at(data, confidence, threshold):
     """r per class, (TP, FP), of the answers whose confidence(scan, index, answer) reaches threshold."""
     totals = {c: [0, 0, 0] for c in CLASSES}
     for scan, (_, objects, answers) in data.items():
-        for o in objects:
-            totals[CLASS[o["category"]]][2] += 1
         ranked = sorted(((confidence(scan, i, h), h) for i, h in enumerate(answers)), key=lambda t: -t[0])
-        found = [False] * len(objects)
-        for c, h in ranked:
-            if c < threshold:
-                break
-            hit = next((i for i, o in enumerate(objects) if not found[i] and right_by_rule(h, o)), None)
-            if hit is None:
-                totals[CLASS[h["category"]]][1] += 1
-            else:
-                found[hit] = True
-                totals[CLASS[h["category"]]][0] += 1
-    return " | ".join(f"{100 * tp / (n + fp):.1f} ({tp}, {fp})" for tp, fp, n in totals.values())
+        tally(totals, objects, [h for c, h in ranked if c >= threshold])
+    return " | ".join(r_text(*counts) for counts in totals.values())
 
 
 def logistic(X, y, l2):
@@ -92,26 +79,19 @@ def confidence_logit(h):
 
 def leave_one_room_out(data, inputs, l2):
     """Per (scan, answer index): its category's regression fitted on the other rooms' answers."""
-    categories = sorted({h["category"] for _, _, answers in data.values() for h in answers})
-    rooms = sorted({room for room, _, _ in data.values()})
+    # Each answer's row once: its room, category, inputs and whether it is right by the seed's rule.
+    rows = [(room, h["category"], (scan, i), np.array(inputs(h)), any(right_by_rule(h, o) for o in objects))
+            for scan, (room, objects, answers) in data.items() for i, h in enumerate(answers)]
     made = {}
-    for category in categories:
-        for held in rooms:
-            X, y = [], []
-            for room, objects, answers in data.values():
+    for category in sorted({r[1] for r in rows}):
+        own = [r for r in rows if r[1] == category]
+        for held in sorted({r[0] for r in rows}):
+            train = [r for r in own if r[0] != held]
+            y = np.array([1.0 if r[4] else 0.0 for r in train])
+            w = logistic(np.array([r[3] for r in train]), y, l2) if train and y.sum() > 0 else None
+            for room, _, key, x, _ in own:
                 if room == held:
-                    continue
-                for h in answers:
-                    if h["category"] == category:
-                        X.append(inputs(h))
-                        y.append(1.0 if any(right_by_rule(h, o) for o in objects) else 0.0)
-            w = logistic(np.array(X), np.array(y), l2) if X and sum(y) > 0 else None
-            for scan, (room, _, answers) in data.items():
-                if room != held:
-                    continue
-                for i, h in enumerate(answers):
-                    if h["category"] == category:
-                        made[(scan, i)] = 0.0 if w is None else float(1 / (1 + np.exp(-np.array(inputs(h)) @ w)))
+                    made[key] = 0.0 if w is None else float(1 / (1 + np.exp(-x @ w)))
     return made
 
 
