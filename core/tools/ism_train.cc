@@ -122,6 +122,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-calibration-scene-checks", no_calibration_checks,
                "calibrate on every verified peak of the rendered rooms, not only on those that pass recognition's "
                "checks of the scene around them (scene_checks.h)");
+  app.add_flag("--learned-weights", params.calibration.learned_weights.enabled,
+               "lower the codeword weights of what the rendered rooms' false peaks are made of, learned before the "
+               "confidence (discriminative_weights.h): chairs rank better on the dev scans, tables worse "
+               "(docs/EVALUATION.md)");
   bool kind_negatives = false;
   app.add_flag("--calibration-kind-negatives", kind_negatives,
                "count a rendered room's peak on an object of another category of its kind (a dining chair's on an "

@@ -23,6 +23,7 @@
 #include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
 #include "core/training/background.h"
+#include "core/training/discriminative_weights.h"
 #include "core/training/parallel_for.h"
 #include "core/training/votes.h"
 
@@ -282,10 +283,12 @@ Scene pointSample(const Scene& frame, float fraction, std::mt19937& rng) {
 }
 
 // Labels one room's peaks, category by category, as labelPeak does, most confident first.
-// `checks`: each category's scene checks, or empty to label every verified peak.
+// `checks`: each category's scene checks, or empty to label every verified peak. `nearest`: each
+// keypoint's nearest global codeword (-1 unknown), which a sample keeps for its supporting keypoints.
 void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hypothesis> peaks, const Eigen::Matrix3f& to_gravity,
                 const VerificationScene& view, bool cloud, const VerificationParams& verification,
-                const std::vector<SceneChecks>& checks, bool kinds, std::vector<CalibrationSample>& out) {
+                const std::vector<SceneChecks>& checks, bool kinds, std::vector<CalibrationSample>& out,
+                const std::vector<int>& nearest) {
   for (size_t c = 0; c < model.categories.size(); ++c) {
     const std::string& name = model.categories[c].name;
     std::vector<Hypothesis> own;
@@ -315,6 +318,9 @@ void labelPeaks(const Model& model, const CalibrationRoom& room, std::vector<Hyp
       sample.category = static_cast<int>(c);
       sample.score = p.score;
       sample.support = p.support;
+      for (int k : p.support_indices) {
+        if (k >= 0 && static_cast<size_t>(k) < nearest.size()) sample.codewords.push_back(nearest[static_cast<size_t>(k)]);
+      }
       sample.positive = positive;
       sample.cloud = cloud;
       if (p.verification) {
@@ -394,6 +400,12 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
       const auto look = [&](const Scene& scene, bool cloud) {
         const Features features = extractFeatures(scene, fold_model.front_end, false).features;
         const VerificationScene view = makeVerificationScene(scene, features.gravity);
+        std::vector<int> nearest(features.size(), -1);  // what learnCodewordFactors reads
+        if (cp.learned_weights.enabled && features.size() > 0) {
+          for (const auto& a : fold_model.global_codebook->activate(features.descriptors, ActivationParams{})) {
+            if (nearest[static_cast<size_t>(a.keypoint)] < 0) nearest[static_cast<size_t>(a.keypoint)] = a.codeword;
+          }
+        }
         for (size_t c = 0; c < fold_model.categories.size(); ++c) {
           RecognitionOptions category_options = options;
           category_options.categories = {fold_model.categories[c].name};
@@ -405,7 +417,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
           auto peaks = recognizeFeatures(fold_model, features, category_options).hypotheses;
           const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
           labelPeaks(fold_model, room, std::move(peaks), to_gravity, view, cloud, verification, checks, cp.kinds,
-                     found);
+                     found, nearest);
         }
       };
       look(room.scene.scene, false);
@@ -642,10 +654,23 @@ std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::v
   return fitGroups(groups, profiles, best_spread > 0 ? sharedSlopes(groups, profiles) : std::nullopt, best_spread);
 }
 
+
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
                const TrainingParams& params) {
-  const std::vector<CalibrationSample> samples = calibrationSamples(model, scans, objects, params);
+  std::vector<CalibrationSample> samples = calibrationSamples(model, scans, objects, params);
   const size_t categories = model.categories.size();
+  if (params.calibration.learned_weights.enabled) {
+    const auto factors =
+        learnCodewordFactors(samples, categories, model.global_codebook->size(), params.calibration.learned_weights);
+    applyCodewordFactors(model, factors);
+    if (params.progress) {
+      for (size_t c = 0; c < categories; ++c) params.progress(describeFactors(model.categories[c].name, factors[c]));
+    }
+    // The confidence is fitted on rooms the weights were not learned from.
+    TrainingParams again = params;
+    again.calibration.seed = params.calibration.seed * 7919u + 11u;
+    samples = calibrationSamples(model, scans, objects, again);
+  }
   // A flat-topped category's box is the top the scene measured (top_extent.h), not its fitted
   // shape's: tables come in every length and carry what stands on and under them, so the profile
   // in a training table's box would judge the box rather than the table.

@@ -66,6 +66,9 @@ struct CalibrationSample {
   float profile_distance = 1.0f;  // Verification::profile_distance, 1 when not verified
   bool cloud = false;  // found in a room seen as an unorganized point sample, or as a map
   int fold = 0;        // the calibration fold whose rooms it was found in
+  // The nearest global codeword of each supporting keypoint, when the calibration learns codeword
+  // weights (CalibrationParams::learned_weights)
+  std::vector<int> codewords;
 };
 
 // A category's kind: the last word of its name ("office_chair" and "dining_chair" are chairs,

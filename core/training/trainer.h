@@ -17,6 +17,20 @@ namespace ism {
 
 struct CalibrationSample;  // calibration.h
 
+// Codeword weights learned from the calibration rooms' peaks (discriminative_weights.h).
+// Optional (ism-train --learned-weights): over five pairs of draws of the shipped recipe, chairs'
+// r at 0.3 rose from 31.1 to 35.9 % and their AP@0.25 from 59.2 to 61.3, while tables' AP fell
+// from 34.3 to 32.3 on every pair and the mAP from 39.1 to 38.3 (docs/EVALUATION.md, "Codeword
+// weights learned from the calibration rooms' peaks").
+struct DiscriminativeWeightParams {
+  bool enabled = false;
+  // The ridge on the codewords' slopes (per peak summed over the log-loss), chosen per category by
+  // the log-loss on each calibration fold's rooms of the fit on the other folds'.
+  std::vector<double> ridges = {0.003, 0.01, 0.03, 0.1, 0.3, 3.0};
+  // No codeword keeps less than this share of its votes (exp(-3)).
+  double lowest = 0.0498;
+};
+
 // The rendered rooms calibration (calibration.h) fits confidences to.
 struct CalibrationParams {
   bool enabled = true;
@@ -96,6 +110,9 @@ struct CalibrationParams {
   // "Categories' slopes pooled").
   bool pooled = false;
   std::vector<double> pooling_spreads = {0.0, 0.25, 0.5, 1.0, 2.0};
+  // Codeword weights learned from the rooms' peaks before the confidence is fitted, on rooms of
+  // another draw.
+  DiscriminativeWeightParams learned_weights;
   uint32_t seed = 7;
 };
 

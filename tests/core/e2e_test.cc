@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <filesystem>
@@ -47,36 +48,47 @@ double secondsSince(std::chrono::steady_clock::time_point start) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 }
 
+// The procedural furniture as OBJ files and a manifest in `dir`, read back as ism-train reads them.
+std::vector<TrainingMesh> writeTrainingSet(const fs::path& dir) {
+  fs::create_directories(dir);
+  std::ofstream manifest(dir / "manifest.tsv");
+  manifest << "category\tpath\tup\tcredit\n";
+  for (const auto& category : kCategories) {
+    for (int v = 0; v < kVariants; ++v) {
+      const std::string name = category + std::to_string(v) + ".obj";
+      writeObj(testing::syntheticFurniture(category, v), dir / name);
+      manifest << category << '\t' << name << "\tz\tprocedural\n";
+    }
+  }
+  manifest.close();
+  auto meshes = readManifest((dir / "manifest.tsv").string());
+  for (auto& m : meshes) m.placement = MeshPlacement{UpAxis::kZ};  // already at real size
+  return meshes;
+}
+
+TrainingParams trainingParams() {
+  TrainingParams params;
+  params.views.views = 6;
+  params.views.distance = kSensorDistance;  // same point density as the test scenes
+  // Noise-free scans and scenes: the front end's boundary detector fires all over a noisy floor
+  // (thousands of keypoints), which this test of the ISM pipeline is not about.
+  params.noise.enabled = false;
+  params.front_end.smoothing.enabled = false;  // noise-free scenes need no MLS: same front end as training
+  params.global_kmeans.k = 60;
+  params.separated_kmeans.k = 30;
+  for (const auto& c : kCategories) params.bin_sizes[c] = defaultBinSize(c);
+  params.command = "e2e_test";
+  params.progress = [](const std::string& line) { std::cout << "  [train] " << line << '\n'; };
+  return params;
+}
+
 class EndToEnd : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
     // ctest runs each case as its own process, possibly in parallel: one folder per process.
     dir_ = fs::path(::testing::TempDir()) / ("ism_e2e_test_" + std::to_string(getpid()));
-    fs::create_directories(dir_);
-    std::ofstream manifest(dir_ / "manifest.tsv");
-    manifest << "category\tpath\tup\tcredit\n";
-    for (const auto& category : kCategories) {
-      for (int v = 0; v < kVariants; ++v) {
-        const std::string name = category + std::to_string(v) + ".obj";
-        writeObj(testing::syntheticFurniture(category, v), dir_ / name);
-        manifest << category << '\t' << name << "\tz\tprocedural\n";
-      }
-    }
-    manifest.close();
-    auto meshes = readManifest((dir_ / "manifest.tsv").string());
-    for (auto& m : meshes) m.placement = MeshPlacement{UpAxis::kZ};  // already at real size
-    TrainingParams params;
-    params.views.views = 6;
-    params.views.distance = kSensorDistance;  // same point density as the test scenes
-    // Noise-free scans and scenes: the front end's boundary detector fires all over a noisy floor
-    // (thousands of keypoints), which this test of the ISM pipeline is not about.
-    params.noise.enabled = false;
-    params.front_end.smoothing.enabled = false;  // noise-free scenes need no MLS: same front end as training
-    params.global_kmeans.k = 60;
-    params.separated_kmeans.k = 30;
-    for (const auto& c : kCategories) params.bin_sizes[c] = defaultBinSize(c);
-    params.command = "e2e_test";
-    params.progress = [](const std::string& line) { std::cout << "  [train] " << line << '\n'; };
+    const auto meshes = writeTrainingSet(dir_);
+    TrainingParams params = trainingParams();
     params.calibration_samples = [](const Model& model, const std::vector<CalibrationSample>& samples) {
       ++sample_calls_;
       for (const auto& c : model.categories) curves_at_call_ += c.calibration.has_value() + c.cloud_calibration.has_value();
@@ -231,6 +243,46 @@ TEST_F(EndToEnd, EmptyFloorGivesNothing) {
   const RecognitionResult result = recognizeScene({}, Strategy{});
   EXPECT_GT(result.input_points, 0u);
   EXPECT_TRUE(result.hypotheses.empty());
+}
+
+// ism-train --learned-weights: the rooms' false peaks lower some codewords' votes before the
+// confidence is fitted on rooms of another draw; the model saves, loads and still finds a chair.
+TEST(LearnedWeights, LowerSomeCodewordsAndStillCalibrateAndFindAChair) {
+  const fs::path dir = fs::path(::testing::TempDir()) / ("ism_e2e_learned_" + std::to_string(getpid()));
+  const auto meshes = writeTrainingSet(dir);
+  TrainingParams params = trainingParams();
+  params.calibration.learned_weights.enabled = true;
+  std::vector<std::string> lines;
+  params.progress = [&](const std::string& line) { lines.push_back(line); };
+  const Model trained = train(meshes, params);
+  saveModel(trained, (dir / "model.ism").string());
+  const Model model = loadModel((dir / "model.ism").string());
+  fs::remove_all(dir);
+  int lowered = 0;
+  for (const auto& c : model.categories) {
+    SCOPED_TRACE(c.name);
+    EXPECT_TRUE(c.calibration.has_value());
+    const auto& weights = c.global_votes.codeword_weights;
+    ASSERT_EQ(weights.size(), static_cast<size_t>(model.global_codebook->size()));
+    for (const float w : weights) {
+      EXPECT_GT(w, 0.0f);
+      EXPECT_LE(w, 1.0f);
+    }
+    lowered += static_cast<int>(std::count_if(weights.begin(), weights.end(), [](float w) { return w < 1.0f; }));
+    EXPECT_TRUE(std::any_of(lines.begin(), lines.end(), [&](const std::string& l) {
+      return l.rfind(c.name + " codeword weights learned: ", 0) == 0;
+    }));
+  }
+  EXPECT_GT(lowered, 0);
+  std::vector<SceneObject> objects;
+  objects.push_back({"dining_chair", testing::syntheticFurniture("dining_chair", 1), 0.0f, 0.3f, 0.6f});
+  const SyntheticScene scene = composeScene(objects, sceneParams());
+  RecognitionOptions options;
+  options.min_confidence = 0.01f;
+  const RecognitionResult result = recognize(model, scene.scene, options);
+  ASSERT_FALSE(result.hypotheses.empty());
+  EXPECT_EQ(result.hypotheses.front().category, "dining_chair");
+  EXPECT_LT((result.hypotheses.front().center - scene.objects.front().center).norm(), 0.15f);
 }
 
 }  // namespace
