@@ -24,6 +24,7 @@
 #include "core/scanner/scanner.h"
 #include "core/training/background.h"
 #include "core/training/discriminative_weights.h"
+#include "core/training/newton.h"
 #include "core/training/parallel_for.h"
 #include "core/training/votes.h"
 
@@ -478,27 +479,17 @@ Eigen::VectorXd logistic(const std::vector<Eigen::VectorXd>& x, const std::vecto
     }
     return sum / n + penalty(v);
   };
-  double current = loss(w);
-  for (int iteration = 0; iteration < 100; ++iteration) {
-    Eigen::VectorXd gradient = ridge.cwiseProduct(w) + prior.cwiseProduct(w - mean);
-    Eigen::MatrixXd hessian = Eigen::MatrixXd((ridge + prior).asDiagonal());
+  const auto derivatives = [&](const Eigen::VectorXd& v, Eigen::VectorXd& gradient, Eigen::MatrixXd& hessian) {
+    gradient = ridge.cwiseProduct(v) + prior.cwiseProduct(v - mean);
+    hessian = Eigen::MatrixXd((ridge + prior).asDiagonal());
     hessian.diagonal().array() += 1e-9;
     for (size_t i = 0; i < x.size(); ++i) {
-      const double p = 1.0 / (1.0 + std::exp(-w.dot(x[i])));
+      const double p = 1.0 / (1.0 + std::exp(-v.dot(x[i])));
       gradient += (p - y[i]) / n * x[i];
       hessian.noalias() += p * (1 - p) / n * x[i] * x[i].transpose();
     }
-    const Eigen::VectorXd delta = hessian.ldlt().solve(gradient);
-    double step = 1;
-    while (step > 1e-6 && !(loss(w - step * delta) < current)) step /= 2;
-    if (step <= 1e-6) break;
-    w -= step * delta;
-    const double next = loss(w);
-    const bool converged = current - next < 1e-12;
-    current = next;
-    if (converged) break;
-  }
-  return w;
+  };
+  return newtonMinimise(std::move(w), loss, derivatives, 100, 1e-12);
 }
 
 void countLabels(const std::vector<CalibrationSample>& samples, Calibration& fit) {

@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "core/common/error.h"
+#include "core/training/newton.h"
 
 namespace ism {
 namespace {
@@ -71,36 +72,25 @@ Eigen::VectorXd ridgeLogistic(const Eigen::MatrixXd& x, const Eigen::VectorXd& y
                                               " inputs for " + std::to_string(y.size()) + " labels and " +
                                               std::to_string(ridge.size()) + " ridges");
   }
-  Eigen::VectorXd w = Eigen::VectorXd::Zero(x.cols());
   const auto loss = [&](const Eigen::VectorXd& v) {
     const Eigen::VectorXd z = x * v;
     double sum = 0.5 * v.dot(ridge.cwiseProduct(v));
     for (Eigen::Index i = 0; i < z.size(); ++i) sum += logLoss(z[i], y[i]);
     return sum;
   };
-  double current = loss(w);
-  for (int iteration = 0; iteration < 50; ++iteration) {
-    const Eigen::VectorXd z = x * w;
+  const auto derivatives = [&](const Eigen::VectorXd& v, Eigen::VectorXd& gradient, Eigen::MatrixXd& hessian) {
+    const Eigen::VectorXd z = x * v;
     Eigen::VectorXd residual(z.size()), curvature(z.size());
     for (Eigen::Index i = 0; i < z.size(); ++i) {
       const double p = 1.0 / (1.0 + std::exp(-z[i]));
       residual[i] = p - y[i];
       curvature[i] = std::max(p * (1 - p), 1e-12);
     }
-    const Eigen::VectorXd gradient = x.transpose() * residual + ridge.cwiseProduct(w);
-    Eigen::MatrixXd hessian = x.transpose() * curvature.asDiagonal() * x;
+    gradient = x.transpose() * residual + ridge.cwiseProduct(v);
+    hessian = x.transpose() * curvature.asDiagonal() * x;
     hessian.diagonal() += ridge + Eigen::VectorXd::Constant(ridge.size(), 1e-9);
-    const Eigen::VectorXd delta = hessian.ldlt().solve(gradient);
-    double step = 1;
-    while (step > 1e-6 && !(loss(w - step * delta) < current)) step /= 2;
-    if (step <= 1e-6) break;
-    w -= step * delta;
-    const double next = loss(w);
-    const bool converged = current - next < 1e-9;
-    current = next;
-    if (converged) break;
-  }
-  return w;
+  };
+  return newtonMinimise(Eigen::VectorXd::Zero(x.cols()), loss, derivatives, 50, 1e-9);
 }
 
 std::vector<CodewordFactors> learnCodewordFactors(const std::vector<CalibrationSample>& samples, size_t categories,
