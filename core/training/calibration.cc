@@ -401,8 +401,9 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
       const auto look = [&](const Scene& scene, bool cloud) {
         const Features features = extractFeatures(scene, fold_model.front_end, false).features;
         const VerificationScene view = makeVerificationScene(scene, features.gravity);
-        std::vector<int> nearest(features.size(), -1);  // what learnCodewordFactors reads
-        if (cp.learned_weights.enabled && features.size() > 0) {
+        std::vector<int> nearest;  // what learnCodewordFactors reads; empty: samples keep no codewords
+        if (cp.learned_weights.enabled) {
+          nearest.assign(features.size(), -1);
           for (const auto& a : fold_model.global_codebook->activate(features.descriptors, ActivationParams{})) {
             if (nearest[static_cast<size_t>(a.keypoint)] < 0) nearest[static_cast<size_t>(a.keypoint)] = a.codeword;
           }
@@ -445,22 +446,22 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
   return samples;
 }
 
+Eigen::Vector4d calibrationInputs(const CalibrationSample& s, bool shape_profile) {
+  const double score = std::max(static_cast<double>(s.score), 1e-9);
+  Eigen::Vector4d f;
+  f << std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit),
+      shape_profile ? static_cast<double>(s.profile_distance) : 0.0;
+  return f;
+}
+
 namespace {
 
-constexpr int kSlopes = 4;  // ln s, ln(s / support), fit, profile distance
+constexpr int kSlopes = 4;  // ln s, ln(s / support), fit, profile distance: calibrationInputs
 // A little ridge on the slopes (not on the intercepts) keeps a separable set finite.
 constexpr double kRidge = 1e-3;
 
 constexpr int kProfile = 3;  // the profile distance's slope
 using Slopes = Eigen::Matrix<double, kSlopes, 1>;
-
-Slopes slopeFeatures(const CalibrationSample& s, bool shape_profile) {
-  const double score = std::max(static_cast<double>(s.score), 1e-9);
-  Slopes f;
-  f << std::log(score), std::log(score / std::max(s.support, 1)), static_cast<double>(s.fit),
-      shape_profile ? static_cast<double>(s.profile_distance) : 0.0;
-  return f;
-}
 
 // Logistic regression by Newton's method on the mean log-loss, each step halved until the loss
 // falls, plus 0.5 * sum_j ridge_j w_j^2 + 0.5 * sum_j prior_j (w_j - mean_j)^2.
@@ -512,7 +513,7 @@ Calibration fitOne(const std::vector<CalibrationSample>& samples, bool shape_pro
   std::vector<double> y;
   for (const auto& s : samples) {
     Eigen::VectorXd row(kSlopes + 1);
-    row << slopeFeatures(s, shape_profile), 1.0;
+    row << calibrationInputs(s, shape_profile), 1.0;
     x.push_back(row);
     y.push_back(s.positive ? 1.0 : 0.0);
   }
@@ -547,7 +548,7 @@ Slopes pooledSlopes(const std::vector<std::pair<const std::vector<CalibrationSam
   for (size_t g = 0; g < groups.size(); ++g) {
     for (const auto& s : *groups[g].first) {
       Eigen::VectorXd row = Eigen::VectorXd::Zero(dims);
-      row.head<kSlopes>() = slopeFeatures(s, groups[g].second);
+      row.head<kSlopes>() = calibrationInputs(s, groups[g].second);
       row[kSlopes + static_cast<int>(g)] = 1.0;
       x.push_back(row);
       y.push_back(s.positive ? 1.0 : 0.0);
@@ -644,7 +645,6 @@ std::vector<std::optional<Calibration>> fitCalibrations(const std::vector<std::v
   if (chosen != nullptr) *chosen = best_spread;
   return fitGroups(groups, profiles, best_spread > 0 ? sharedSlopes(groups, profiles) : std::nullopt, best_spread);
 }
-
 
 void calibrate(Model& model, const std::vector<TrainingScan>& scans, const std::vector<PlacedObject>& objects,
                const TrainingParams& params) {

@@ -16,6 +16,8 @@
 #include <string>
 #include <vector>
 
+#include <Eigen/Dense>
+
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 #include "core/scanner/mesh.h"
@@ -94,6 +96,10 @@ PeakLabel labelPeak(const Hypothesis& peak, const std::vector<std::string>& cate
 std::vector<CalibrationSample> calibrationSamples(const Model& model, const std::vector<TrainingScan>& scans,
                                                   const std::vector<PlacedObject>& objects,
                                                   const TrainingParams& params);
+
+// A peak's inputs of the calibration: ln score, ln(score / support), the fit and, with
+// `shape_profile`, the profile distance (else 0).
+Eigen::Vector4d calibrationInputs(const CalibrationSample& s, bool shape_profile = true);
 
 // Logistic regression of `positive` on ln score, ln(score / support), the fit and, with
 // `shape_profile`, the profile distance (Newton's method with step halving, a little ridge so that

@@ -22,12 +22,8 @@ void design(const std::vector<const CalibrationSample*>& rows, int codewords, Ei
   for (size_t i = 0; i < rows.size(); ++i) {
     const CalibrationSample& s = *rows[i];
     const auto r = static_cast<Eigen::Index>(i);
-    const double score = std::max(static_cast<double>(s.score), 1e-9);
     x(r, 0) = 1;
-    x(r, 1) = std::log(score);
-    x(r, 2) = std::log(score / std::max(s.support, 1));
-    x(r, 3) = s.fit;
-    x(r, 4) = s.profile_distance;
+    x.block<1, kInputs - 1>(r, 1) = calibrationInputs(s).transpose();
     for (const int c : s.codewords) {
       if (c >= 0 && c < codewords) x(r, kInputs + c) += 1.0 / static_cast<double>(s.codewords.size());
     }
@@ -43,23 +39,18 @@ Eigen::VectorXd ridgeOf(int codewords, double codeword_ridge) {
   return r;
 }
 
-// The summed log-loss on each fold's samples of the fit on the other folds' (the first `inputs`
-// columns only).
-double heldOutLoss(const std::vector<const CalibrationSample*>& own, int codewords, Eigen::Index inputs, double ridge) {
-  std::set<int> folds;
-  for (const auto* s : own) folds.insert(s->fold);
+// The summed log-loss on each fold's rows of the fit on the other folds' rows (the first `inputs`
+// columns of the design `x`, labels `y`; `folds` each row's fold).
+double heldOutLoss(const Eigen::MatrixXd& x, const Eigen::VectorXd& y, const std::vector<int>& folds, Eigen::Index inputs,
+                   const Eigen::VectorXd& ridge) {
   double total = 0;
-  for (const int fold : folds) {
-    std::vector<const CalibrationSample*> train, test;
-    for (const auto* s : own) (s->fold == fold ? test : train).push_back(s);
+  for (const int fold : std::set<int>(folds.begin(), folds.end())) {
+    std::vector<Eigen::Index> train, test;
+    for (size_t i = 0; i < folds.size(); ++i) (folds[i] == fold ? test : train).push_back(static_cast<Eigen::Index>(i));
     if (train.empty() || test.empty()) continue;
-    Eigen::MatrixXd x, xt;
-    Eigen::VectorXd y, yt;
-    design(train, codewords, x, y);
-    design(test, codewords, xt, yt);
-    const Eigen::VectorXd w = ridgeLogistic(x.leftCols(inputs), y, ridgeOf(codewords, ridge).head(inputs));
-    const Eigen::VectorXd z = xt.leftCols(inputs) * w;
-    for (Eigen::Index i = 0; i < z.size(); ++i) total += logLoss(z[i], yt[i]);
+    const Eigen::VectorXd w = ridgeLogistic(x(train, Eigen::seqN(0, inputs)), y(train), ridge.head(inputs));
+    const Eigen::VectorXd z = x(test, Eigen::seqN(0, inputs)) * w;
+    for (Eigen::Index i = 0; i < z.size(); ++i) total += logLoss(z[i], y[test[static_cast<size_t>(i)]]);
   }
   return total;
 }
@@ -105,18 +96,20 @@ std::vector<CodewordFactors> learnCodewordFactors(const std::vector<CalibrationS
     const auto positives = std::count_if(own.begin(), own.end(), [](const CalibrationSample* s) { return s->positive; });
     if (positives < 5 || static_cast<size_t>(positives) == own.size()) continue;
     CodewordFactors& result = out[c];
+    Eigen::MatrixXd x;
+    Eigen::VectorXd y;
+    design(own, codewords, x, y);
+    std::vector<int> folds;
+    for (const auto* s : own) folds.push_back(s->fold);
     result.held_out_loss = std::numeric_limits<double>::infinity();
     for (const double ridge : params.ridges) {
-      const double loss = heldOutLoss(own, codewords, kInputs + codewords, ridge);
+      const double loss = heldOutLoss(x, y, folds, kInputs + codewords, ridgeOf(codewords, ridge));
       if (loss < result.held_out_loss) {
         result.held_out_loss = loss;
         result.ridge = ridge;
       }
     }
-    result.held_out_loss_without = heldOutLoss(own, codewords, kInputs, 0);
-    Eigen::MatrixXd x;
-    Eigen::VectorXd y;
-    design(own, codewords, x, y);
+    result.held_out_loss_without = heldOutLoss(x, y, folds, kInputs, ridgeOf(codewords, 0));
     const Eigen::VectorXd w = ridgeLogistic(x, y, ridgeOf(codewords, result.ridge));
     result.score_slope = w[1];
     if (!(result.score_slope > 0)) continue;  // a score that does not raise the odds says nothing of votes
