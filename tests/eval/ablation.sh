@@ -71,7 +71,8 @@ steps=(
   "draws|--draws 3|--preset default|+ three draws of training's randomness answering together: each draw's peaks grouped by object, each verified by its draw, the mean of the draws' confidences"
   "balanced-codebook|--draws 3 --codebook-sampling balanced|--preset default|+ the global codebook's k-means on as many descriptors of each category, not on a sample of all pooled"
   "kinds|--draws 3 --codebook-sampling balanced|--preset default|+ a calibration room's peak on furniture of another category of its kind (a dining chair's on an office chair) left out of its category's fit, not counted against it"
-  "walls|--draws 2 --codebook-sampling balanced --wall-seen-through 1|--preset default|+ a vertical plane the sensor sees through at more points than its own is no wall, its points keypoints again; two draws, not three, to pay for it (the default)"
+  "walls|--draws 2 --codebook-sampling balanced --wall-seen-through 1|--preset default|+ a vertical plane the sensor sees through at more points than its own is no wall, its points keypoints again; two draws, not three, to pay for it"
+  "learned-weights|--draws 2 --codebook-sampling balanced --wall-seen-through 1 --learned-weights|--preset default|+ codeword weights learned from the calibration rooms' true and false peaks, lowered where the false peaks are made of them (Maji and Malik's max-margin Hough transform; the default)"
   "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers|one draw without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
   "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space|one draw without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
   "icp|=checked-calibration|--preset default --icp 8|one draw with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
@@ -89,7 +90,7 @@ for step in "${steps[@]}"; do
   # descriptors pooled: the steps before the balanced codebook's measure the pooled one.
   [[ $train_args == *--codebook-sampling* || $train_args == =* ]] || train_args+=" --codebook-sampling pooled"
   # Rows but the kinds' count a calibration room's peak on another category of its kind against it.
-  [[ $name == kinds || $name == walls || $name == calibration-maps || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
+  [[ $name == kinds || $name == walls || $name == learned-weights || $name == calibration-maps || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
   if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
     [[ -f $work/$name.seconds ]] || { echo "ablation: $name has no earlier run in $work; name it" >&2; exit 1; }
     rows+=("$name|$what|$(cat "$work/$name.seconds")")
