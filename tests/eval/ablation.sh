@@ -89,7 +89,9 @@ for step in "${steps[@]}"; do
   # Rows that do not name their codebook's sampling cluster a sample of every category's
   # descriptors pooled: the steps before the balanced codebook's measure the pooled one.
   [[ $train_args == *--codebook-sampling* || $train_args == =* ]] || train_args+=" --codebook-sampling pooled"
-  # Rows but the kinds' count a calibration room's peak on another category of its kind against it.
+  # A calibration room's peak on another category of its kind counts against it in the rows before
+  # the kinds' and in the single-draw rows made before it; the kinds' row and those that build on it
+  # (walls, learned weights, the rooms seen as maps) leave it out, as the default does.
   [[ $name == kinds || $name == walls || $name == learned-weights || $name == calibration-maps || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
   if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
     [[ -f $work/$name.seconds ]] || { echo "ablation: $name has no earlier run in $work; name it" >&2; exit 1; }
