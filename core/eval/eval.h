@@ -53,6 +53,7 @@ struct EvalRecognition {
   bool seat_area = true;       // SeatAreaParams::enabled
   bool merge_support = true;   // SuppressionParams::merge_support
   bool hidden_top = true;      // TopExtentParams::max_hidden_run above 0
+  bool top_support = true;     // SuppressionParams::top_support
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

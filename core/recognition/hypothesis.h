@@ -60,7 +60,8 @@ struct Hypothesis {
   OrientedBox box;
   bool upright_box = false;
   // Keypoints that voted into the peak, and into the peaks of its category merged into it
-  // (SuppressionParams::merge_support), each once.
+  // (SuppressionParams::merge_support), each once; a table's answer, those that voted into the bin
+  // at its box's centre (SuppressionParams::top_support).
   int support = 0;
   Eigen::Vector3f support_centroid = Eigen::Vector3f::Zero();
   bool passed_selection = true;  // box volume within range and longest edge below the maximum

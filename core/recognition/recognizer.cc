@@ -196,15 +196,16 @@ struct SearchTimes {
 // bulk of the memory on a room scan. In the default preset each peak gets its confidence and
 // upright box, peaks that cannot reach `lowest` confidence are dropped and peaks outside the
 // category's height prior go to `rejected` (when given). With keep_votes the votes go to `votes`.
+// The codewords activated go to `activations` (activateCodewords).
 std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& features, const RecognitionOptions& options,
                                      float lowest, std::vector<Hypothesis>* rejected, std::vector<Vote>* votes,
-                                     SearchTimes& times) {
+                                     std::vector<std::vector<Activation>>& activations, SearchTimes& times) {
   const Strategy& strategy = options.strategy;
   const Model& model = *member.model;
   const Plan& plan = member.plan;
   const bool global = strategy.codebook == CodebookType::kGlobal;
   auto start = std::chrono::steady_clock::now();
-  const auto activations = activateCodewords(member, features, options);
+  activations = activateCodewords(member, features, options);
   times.activate_ms += msSince(start);
   std::vector<Hypothesis> all;
   for (size_t s = 0; s < plan.categories.size(); ++s) {
@@ -249,7 +250,8 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
 // lends the same support. A long top's keypoints vote for centres all along it, and one answer
 // then stands for every peak the top gave, as for the peaks it merged
 // (SuppressionParams::merge_support). The boxes of chairs and couches are their fitted shapes',
-// which may hold a neighbour's weak peaks.
+// which may hold a neighbour's weak peaks. Only without SuppressionParams::top_support, which
+// collects a table's support at its box's centre instead (supportAtTops).
 void absorbWeakSupport(std::vector<Hypothesis>::iterator first, std::vector<Hypothesis>::iterator last,
                        const std::vector<std::vector<Hypothesis>>& peaks,
                        const std::vector<std::vector<bool>>& answering, const Eigen::Matrix3f& to_gravity) {
@@ -295,7 +297,8 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
   std::vector<Hypothesis> answers;
   for (size_t s = 0; s < plan.categories.size(); ++s) {
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
-    const bool absorb = view && options.suppression.merge_support && options.scene_checks.top_extent.enabled &&
+    const bool absorb = view && options.suppression.merge_support && !options.suppression.top_support &&
+                        options.scene_checks.top_extent.enabled &&
                         flatTopped(category, options.scene_checks.top_extent);
     std::vector<std::vector<Hypothesis>> own(members.size());
     for (size_t m = 0; m < members.size(); ++m) {
@@ -466,6 +469,51 @@ void selectHypotheses(std::vector<Hypothesis> all, const Features& features, con
   }
 }
 
+// SuppressionParams::top_support: each verified answer of a flat-topped category whose box spans
+// the measured top is supported by the keypoints that voted into the bin at its box's centre, in
+// any of the models (`activations[m]`, activateCodewords').
+void supportAtTops(const std::vector<Member>& members, const std::vector<std::vector<std::vector<Activation>>>& activations,
+                   const Features& features, const RecognitionOptions& options, std::vector<Hypothesis>& answers) {
+  const bool global = options.strategy.codebook == CodebookType::kGlobal;
+  const Plan& plan = members.front().plan;
+  for (size_t s = 0; s < plan.categories.size(); ++s) {
+    const CategoryModel& category = members.front().model->categories[static_cast<size_t>(plan.categories[s])];
+    std::vector<Hypothesis*> tops;
+    for (auto& h : answers) {
+      if (h.category == category.name && h.verification && h.upright_box) tops.push_back(&h);
+    }
+    if (tops.empty() || !flatTopped(category, options.scene_checks.top_extent)) continue;
+    std::vector<std::vector<char>> supporting(tops.size(), std::vector<char>(features.size(), 0));
+    for (size_t m = 0; m < members.size(); ++m) {
+      const VoteCaster caster(*members[m].model, plan.categories[s], features, activations[m][global ? 0 : s],
+                              options.strategy);
+      for (size_t t = 0; t < tops.size(); ++t) {
+        for (int k : keypointsVotingInto(caster, tops[t]->box.center, category.bin_size / 2)) {
+          supporting[t][static_cast<size_t>(k)] = 1;
+        }
+      }
+    }
+    for (size_t t = 0; t < tops.size(); ++t) {
+      Hypothesis& h = *tops[t];
+      std::vector<int> indices;
+      for (size_t k = 0; k < features.size(); ++k) {
+        if (supporting[t][k]) indices.push_back(static_cast<int>(k));
+      }
+      if (indices.empty()) continue;  // nothing voted there: the peaks' support stays
+      h.support_indices = std::move(indices);
+      h.support_keypoints.clear();
+      h.support_centroid.setZero();
+      for (int k : h.support_indices) {
+        h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
+        h.support_centroid += h.support_keypoints.back();
+      }
+      h.support = static_cast<int>(h.support_indices.size());
+      h.support_centroid /= static_cast<float>(h.support);
+      if (!options.return_keypoints) h.support_keypoints = {};
+    }
+  }
+}
+
 void recognizePlanned(const std::vector<Member>& members, const Features& features, const Scene* scene,
                       const RecognitionOptions& options, RecognitionResult& result) {
   result.keypoints = features.size();
@@ -475,9 +523,10 @@ void recognizePlanned(const std::vector<Member>& members, const Features& featur
   const float lowest = members.size() > 1 ? kLowestConfidence : std::max(options.min_confidence, kLowestConfidence);
   SearchTimes times;
   std::vector<std::vector<Hypothesis>> peaks;
+  std::vector<std::vector<std::vector<Activation>>> activations(members.size());
   for (size_t m = 0; m < members.size(); ++m) {  // the first model's rejected peaks and votes are reported
     peaks.push_back(findAllPeaks(members[m], features, options, lowest, m == 0 ? &result.rejected : nullptr,
-                                 m == 0 && options.keep_votes ? &result.votes : nullptr, times));
+                                 m == 0 && options.keep_votes ? &result.votes : nullptr, activations[m], times));
   }
   result.timings.add("activate", times.activate_ms);
   result.timings.add("vote", times.vote_ms);
@@ -493,6 +542,11 @@ void recognizePlanned(const std::vector<Member>& members, const Features& featur
     all = std::move(peaks.front());
   }
   selectHypotheses(std::move(all), features, options, result);
+  if (verifying && options.preset == RecognitionPreset::kDefault && options.suppression.top_support &&
+      options.scene_checks.top_extent.enabled) {
+    ScopedStage stage(&result.timings, "support");
+    supportAtTops(members, activations, features, options, result.hypotheses);
+  }
   if (options.keep_votes) result.keypoint_positions = features.positions;
 }
 

@@ -20,11 +20,21 @@ struct SuppressionParams {
   bool shared_surface = true;
   // The supporting keypoints of the peaks a hypothesis absorbs of its own category join its own
   // (Hypothesis::support, support_keypoints, support_indices, support_centroid): one answer on a
-  // long table is supported by every peak its top gave. Recognition also gives a table's answer
-  // the support of the weaker, unverified peaks whose centre its box holds (recognizer.cc). Off
+  // long table is supported by every peak its top gave. Without top_support, recognition also
+  // gives a table's answer the support of the weaker, unverified peaks whose centre its box holds
+  // (recognizer.cc). Off
   // where the support still feeds the confidence (recognition's merge before verification, the
   // calibration's), which learned it per peak.
   bool merge_support = true;
+  // A verified answer of a flat-topped category, whose box spans the table top the scene measured
+  // (top_extent.h), is supported by the keypoints with a vote in the bin at its box's centre: the
+  // seed's support of a hypothesis there. Its peaks stand wherever the top's keypoints happened to
+  // vote most, often at one end of a long top; the box stands on the top itself. Recognition
+  // collects them after the answers are chosen (recognizer.cc); it replaces merge_support's and
+  // the weak peaks' support for those answers. As the mean-shift search of Leibe, Leonardis and
+  // Schiele's ISM ("Robust object detection with interleaved categorization and segmentation",
+  // IJCV 2008) takes the votes inside its kernel at the position it settles on.
+  bool top_support = true;
 };
 
 // `from`'s supporting keypoints join `into`'s, each once (both lists ascend by index, as the Hough

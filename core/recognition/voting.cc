@@ -125,19 +125,24 @@ VoteCaster::VoteCaster(const Model& model, int category_index, const Features& f
   }
 }
 
+Eigen::Vector3f VoteCaster::reach(size_t k) const {
+  float longest = -1;
+  for (uint32_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
+    const int codeword = by_keypoint_[i].codeword;
+    if (table_.occurrences(codeword) > 0) longest = std::max(longest, longest_[static_cast<size_t>(codeword)]);
+  }
+  if (longest < 0) return Eigen::Vector3f::Constant(-1);
+  return frames_[k].colwise().norm().transpose() * longest;
+}
+
 bool VoteCaster::voteBounds(Eigen::Vector3f& lo, Eigen::Vector3f& hi) const {
   if (!finite_) return false;
   lo = Eigen::Vector3f::Constant(std::numeric_limits<float>::max());
   hi = -lo;
   bool any = false;
   for (size_t k = 0; k < keypoints(); ++k) {
-    float reach = -1;
-    for (uint32_t i = offsets_[k]; i < offsets_[k + 1]; ++i) {
-      const int codeword = by_keypoint_[i].codeword;
-      if (table_.occurrences(codeword) > 0) reach = std::max(reach, longest_[static_cast<size_t>(codeword)]);
-    }
-    if (reach < 0) continue;  // no votes
-    const Eigen::Vector3f extent = frames_[k].colwise().norm().transpose() * reach;
+    const Eigen::Vector3f extent = reach(k);
+    if (extent.x() < 0) continue;  // no votes
     const Eigen::Vector3f& o = features_.positions[k];
     if (!(o - extent).allFinite() || !(o + extent).allFinite()) return false;
     lo = lo.cwiseMin(o - extent);
@@ -145,6 +150,23 @@ bool VoteCaster::voteBounds(Eigen::Vector3f& lo, Eigen::Vector3f& hi) const {
     any = true;
   }
   return any;
+}
+
+std::vector<int> keypointsVotingInto(const VoteCaster& caster, const Eigen::Vector3f& center, float half_edge) {
+  std::vector<int> keypoints;
+  VoteChunk chunk;
+  for (size_t k = 0; k < caster.keypoints(); ++k) {
+    const Eigen::Vector3f extent = caster.reach(k);
+    if (extent.x() < 0) continue;
+    const Eigen::Vector3f gap = (caster.features().positions[k] - center).cwiseAbs();
+    // A millimetre more for the floats' rounding; a reach that is not finite casts its votes and
+    // leaves the test to insideCube.
+    if (extent.allFinite() && (gap.array() > extent.array() + (half_edge + 1e-3f)).any()) continue;
+    bool inside = false;
+    caster.forEachVoteInCube(k, center, half_edge, chunk, [&](float, uint32_t) { inside = true; });
+    if (inside) keypoints.push_back(static_cast<int>(k));
+  }
+  return keypoints;
 }
 
 std::vector<Vote> castVotes(const Model& model, int category_index, const Features& features,

@@ -79,6 +79,10 @@ class VoteCaster {
   // activated codewords. False when nothing votes or a bound is not finite.
   bool voteBounds(Eigen::Vector3f& lo, Eigen::Vector3f& hi) const;
 
+  // How far from keypoint k its votes land along each scene axis at most, as voteBounds bounds
+  // them; negative when it casts none.
+  Eigen::Vector3f reach(size_t k) const;
+
   // The index of keypoint k's first vote in the order votes are cast (forEachChunk).
   size_t firstVote(size_t k) const { return vote_offsets_[k]; }
 
@@ -170,5 +174,10 @@ class VoteCaster {
   std::vector<float> longest_;  // per codeword: its longest vote, or kNotActivated
   bool finite_ = true;          // every activated codeword's votes
 };
+
+// The keypoints with at least one vote in the cube of insideCube(center, half_edge), ascending:
+// what the seed calls the support of a hypothesis centred there. Keypoints whose votes cannot
+// reach the cube are not cast.
+std::vector<int> keypointsVotingInto(const VoteCaster& caster, const Eigen::Vector3f& center, float half_edge);
 
 }  // namespace ism

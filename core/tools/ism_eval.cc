@@ -110,7 +110,12 @@ int main(int argc, char** argv) {
   bool own_peak_support = false;
   real->add_flag("--own-peak-support", own_peak_support,
                  "default preset: an answer's supporting keypoints (the seed's centre rule reads their centroid) are "
-                 "its own peak's, not also those of the peaks of its category it merged (suppression.h)");
+                 "its own peak's, not also those of the peaks of its category it merged, nor a table's those voting "
+                 "at its box's centre (suppression.h)");
+  bool merged_top_support = false;
+  real->add_flag("--merged-top-support", merged_top_support,
+                 "default preset: a table's supporting keypoints are those of the peaks it merged and of the weak "
+                 "peaks its box holds, not those with a vote in the bin at its box's centre (suppression.h)");
   std::string map_verification = "3d";
   real->add_option("--map-verification", map_verification,
                    "default preset: how maps (clouds around their viewpoint) are verified: 3d, each shape point "
@@ -230,7 +235,8 @@ int main(int argc, char** argv) {
       params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
                             fit_terms, !keep_topless, !no_seat_run, !no_open_top, !no_upper_part, !no_level_top, !no_bare_floor,
-                            !no_under_top, !no_seat_area, !own_peak_support, !no_hidden_top};
+                            !no_under_top, !no_seat_area, !own_peak_support, !no_hidden_top,
+                            !own_peak_support && !merged_top_support};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

@@ -185,7 +185,7 @@ TEST_F(Tools, DetectOptionsShapeTheAnswers) {
 // category, placed by the seed's rule (the centroid of its supporting keypoints within a quarter
 // of the object's longest edge of its centre). The chair's back hides part of the table's top and
 // most of the table's keypoints vote from one end, so the table's answer is placed right only when
-// it is supported by every peak its top gave, the weak ones too.
+// it is supported by the keypoints that voted for its box's centre, not its peaks'.
 TEST_F(Tools, DetectAnswersTheSampleSceneObjectByObject) {
   const std::string sample = std::string(ISM_SOURCE_DIR) + "/models/sample/living_room";
   const Outcome r = run("ism-detect", {"-m", kModel, "--json", sample + ".pcd"});
@@ -211,8 +211,8 @@ TEST_F(Tools, DetectAnswersTheSampleSceneObjectByObject) {
 
 // What supports a table's answer does not hang on the operating point: on tum_desk the desk's
 // top gives several peaks, and a lower min_confidence verifies more of them without answering
-// them. The desk's answer keeps the same supporting keypoints from 0.3 down to 0.2 (at 0.25 one
-// more peak is verified and answers nothing; its support was lost before).
+// them. The desk's answer keeps the same supporting keypoints from 0.3 down to 0.2: those that
+// voted for its box's centre, which the measured top sets.
 TEST_F(Tools, ATablesSupportIsTheSameAtEveryOperatingPoint) {
   if (!fs::exists(kTumDesk)) GTEST_SKIP() << kTumDesk << " is absent (development data, ../shared/docs/DATASETS.md)";
   std::vector<nlohmann::json> desks;

@@ -134,5 +134,40 @@ TEST(VoteCaster, VotesInACubeAreThoseLandingInsideAcrossChunks) {
   EXPECT_EQ(got, expected);
 }
 
+// The seed's support of a hypothesis at a place: the keypoints with at least one vote in the bin
+// there, found by casting every keypoint's votes (keypointsVotingInto skips those that cannot reach
+// the bin), in ascending order; none where nothing lands.
+TEST(VoteCaster, TheKeypointsVotingIntoABinAreThoseWithAVoteThere) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> coordinate(-0.6f, 0.6f), place(-2.0f, 2.0f);
+  std::vector<std::vector<Eigen::Vector3f>> votes(3);
+  for (auto& codeword : votes) {
+    for (int i = 0; i < 40; ++i) codeword.emplace_back(coordinate(rng), coordinate(rng), coordinate(rng));
+  }
+  const Model m = modelWithVotes(votes);
+  Features f;
+  std::vector<Activation> activations;
+  for (int k = 0; k < 200; ++k) {
+    f.positions.emplace_back(place(rng), place(rng), place(rng) / 4);
+    f.lrfs.push_back(Eigen::AngleAxisf(0.1f * static_cast<float>(k), Eigen::Vector3f(1, 1, 2).normalized()).toRotationMatrix());
+    activations.push_back({k, k % 3, 0.1f});
+  }
+  const VoteCaster caster(m, 0, f, activations, strategy(VoteWeighting::kLocalization));
+  const Eigen::Vector3f centre(0.2f, -0.4f, 0.1f);
+  const float half_edge = 0.15f;
+  std::vector<int> expected;
+  for (size_t k = 0; k < f.size(); ++k) {
+    bool inside = false;
+    caster.forEachActivation(k, [&](float, uint32_t first, uint32_t last) {
+      for (uint32_t v = first; v < last; ++v) inside = inside || insideCube(caster.position(k, v), centre, half_edge);
+    });
+    if (inside) expected.push_back(static_cast<int>(k));
+  }
+  ASSERT_GT(expected.size(), 5u);
+  ASSERT_LT(expected.size(), f.size() / 2);
+  EXPECT_EQ(keypointsVotingInto(caster, centre, half_edge), expected);
+  EXPECT_TRUE(keypointsVotingInto(caster, Eigen::Vector3f(20, 0, 0), half_edge).empty());
+}
+
 }  // namespace
 }  // namespace ism
