@@ -576,15 +576,11 @@ std::vector<Hypothesis> hypothesesAbove(float threshold, const CategoryModel& ca
     h.category = category.name;
     h.threshold = threshold;
     h.center = candidates[c].center;
+    std::vector<int> support;
     for (const auto& part : parts) {  // ranges in keypoint order: concatenated, still each once
-      for (int k : part.keypoints[c]) {
-        h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
-        h.support_indices.push_back(k);
-      }
+      support.insert(support.end(), part.keypoints[c].begin(), part.keypoints[c].end());
     }
-    h.support = static_cast<int>(h.support_keypoints.size());
-    for (const auto& p : h.support_keypoints) h.support_centroid += p;
-    h.support_centroid /= static_cast<float>(h.support);
+    setSupport(h, std::move(support), features);
     h.box = fitOrientedBox(h.support_keypoints);
     h.passed_selection = passesBoxSelection(h.box, category.box);
     peaks.push_back(std::move(h));

@@ -75,4 +75,18 @@ struct Hypothesis {
   std::vector<int> support_indices;  // the supporting keypoints as indices into the Features
 };
 
+// Makes `indices` (ascending keypoints of `features`) the hypothesis' support: the indices, their
+// positions, their count and centroid.
+inline void setSupport(Hypothesis& h, std::vector<int> indices, const Features& features) {
+  h.support_indices = std::move(indices);
+  h.support_keypoints.clear();
+  h.support_centroid.setZero();
+  for (int k : h.support_indices) {
+    h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
+    h.support_centroid += h.support_keypoints.back();
+  }
+  h.support = static_cast<int>(h.support_indices.size());
+  if (h.support > 0) h.support_centroid /= static_cast<float>(h.support);
+}
+
 }  // namespace ism

@@ -483,33 +483,22 @@ void supportAtTops(const std::vector<Member>& members, const std::vector<std::ve
       if (h.category == category.name && h.verification && h.upright_box) tops.push_back(&h);
     }
     if (tops.empty() || !flatTopped(category, options.scene_checks.top_extent)) continue;
-    std::vector<std::vector<char>> supporting(tops.size(), std::vector<char>(features.size(), 0));
+    std::vector<std::vector<int>> supporting(tops.size());  // ascending, each keypoint once
     for (size_t m = 0; m < members.size(); ++m) {
       const VoteCaster caster(*members[m].model, plan.categories[s], features, activations[m][global ? 0 : s],
                               options.strategy);
       for (size_t t = 0; t < tops.size(); ++t) {
-        for (int k : keypointsVotingInto(caster, tops[t]->box.center, category.bin_size / 2)) {
-          supporting[t][static_cast<size_t>(k)] = 1;
-        }
+        const std::vector<int> voting = keypointsVotingInto(caster, tops[t]->box.center, category.bin_size / 2);
+        std::vector<int> both;
+        std::set_union(supporting[t].begin(), supporting[t].end(), voting.begin(), voting.end(),
+                       std::back_inserter(both));
+        supporting[t] = std::move(both);
       }
     }
     for (size_t t = 0; t < tops.size(); ++t) {
-      Hypothesis& h = *tops[t];
-      std::vector<int> indices;
-      for (size_t k = 0; k < features.size(); ++k) {
-        if (supporting[t][k]) indices.push_back(static_cast<int>(k));
-      }
-      if (indices.empty()) continue;  // nothing voted there: the peaks' support stays
-      h.support_indices = std::move(indices);
-      h.support_keypoints.clear();
-      h.support_centroid.setZero();
-      for (int k : h.support_indices) {
-        h.support_keypoints.push_back(features.positions[static_cast<size_t>(k)]);
-        h.support_centroid += h.support_keypoints.back();
-      }
-      h.support = static_cast<int>(h.support_indices.size());
-      h.support_centroid /= static_cast<float>(h.support);
-      if (!options.return_keypoints) h.support_keypoints = {};
+      if (supporting[t].empty()) continue;  // nothing voted there: the peaks' support stays
+      setSupport(*tops[t], std::move(supporting[t]), features);
+      if (!options.return_keypoints) tops[t]->support_keypoints = {};
     }
   }
 }

@@ -22,9 +22,8 @@ struct SuppressionParams {
   // (Hypothesis::support, support_keypoints, support_indices, support_centroid): one answer on a
   // long table is supported by every peak its top gave. Without top_support, recognition also
   // gives a table's answer the support of the weaker, unverified peaks whose centre its box holds
-  // (recognizer.cc). Off
-  // where the support still feeds the confidence (recognition's merge before verification, the
-  // calibration's), which learned it per peak.
+  // (recognizer.cc). Off where the support still feeds the confidence (recognition's merge before
+  // verification, the calibration's), which learned it per peak.
   bool merge_support = true;
   // A verified answer of a flat-topped category, whose box spans the table top the scene measured
   // (top_extent.h), is supported by the keypoints with a vote in the bin at its box's centre: the
