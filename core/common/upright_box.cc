@@ -106,12 +106,7 @@ UprightBox uprightBoxOf(const OrientedBox& box, const Eigen::Matrix3f& to_gravit
   return out;
 }
 
-float intersectionOverUnion(const UprightBox& a, const UprightBox& b) {
-  const float va = a.volume(), vb = b.volume();
-  if (!(va > 0) || !(vb > 0)) return 0;
-  const float bottom = std::max(a.center.z() - a.size.z() / 2, b.center.z() - b.size.z() / 2);
-  const float top = std::min(a.center.z() + a.size.z() / 2, b.center.z() + b.size.z() / 2);
-  if (!(top > bottom)) return 0;
+float footprintOverlap(const UprightBox& a, const UprightBox& b) {
   // Footprints farther apart than their half-diagonals reach have no overlap for the clipping to
   // find (it would return no polygon): most pairs of a room's hypotheses. The margin keeps the
   // clipping's rounding on the near side of this test.
@@ -119,7 +114,16 @@ float intersectionOverUnion(const UprightBox& a, const UprightBox& b) {
   if ((a.center.head<2>() - b.center.head<2>()).norm() > 1.001f * reach + 1e-4f) return 0;
   const auto fa = footprint(a);
   const auto fb = footprint(b);
-  const float overlap = area(clipConvex({fa.begin(), fa.end()}, fb)) * (top - bottom);
+  return area(clipConvex({fa.begin(), fa.end()}, fb));
+}
+
+float intersectionOverUnion(const UprightBox& a, const UprightBox& b) {
+  const float va = a.volume(), vb = b.volume();
+  if (!(va > 0) || !(vb > 0)) return 0;
+  const float bottom = std::max(a.center.z() - a.size.z() / 2, b.center.z() - b.size.z() / 2);
+  const float top = std::min(a.center.z() + a.size.z() / 2, b.center.z() + b.size.z() / 2);
+  if (!(top > bottom)) return 0;
+  const float overlap = footprintOverlap(a, b) * (top - bottom);
   return overlap / (va + vb - overlap);
 }
 

@@ -28,6 +28,9 @@ UprightBox uprightBoxOf(const OrientedBox& box, const Eigen::Matrix3f& to_gravit
 // Whether `p` (gravity frame) lies over the box's footprint, at any height.
 bool insideFootprint(const Eigen::Vector3f& p, const UprightBox& box);
 
+// The area the two footprints share (m^2), at any heights.
+float footprintOverlap(const UprightBox& a, const UprightBox& b);
+
 // Intersection over union of the two boxes' volumes; 0 when either is empty.
 float intersectionOverUnion(const UprightBox& a, const UprightBox& b);
 

@@ -54,6 +54,7 @@ struct EvalRecognition {
   bool merge_support = true;   // SuppressionParams::merge_support
   bool hidden_top = true;      // TopExtentParams::max_hidden_run above 0
   bool top_support = true;     // SuppressionParams::top_support
+  bool seat_under_top = true;  // SeatUnderTopParams::enabled
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -3,7 +3,9 @@
 #include <algorithm>
 #include <cmath>
 #include <chrono>
+#include <functional>
 #include <iterator>
+#include <map>
 
 #include "core/common/error.h"
 #include "core/common/upright_box.h"
@@ -433,13 +435,15 @@ std::vector<Hypothesis> answerPerCategory(const std::vector<Member>& members, co
 // Hypothesis::relativeScore and sorts them into result.hypotheses and result.rejected by their
 // box test. The default preset keeps one answer per object and the confident ones, best first.
 void selectHypotheses(std::vector<Hypothesis> all, const Features& features, const RecognitionOptions& options,
-                      RecognitionResult& result) {
+                      const std::function<FloorKind(const std::string&)>& floor_kind, RecognitionResult& result) {
   ScopedStage stage(&result.timings, "select");
   if (options.preset == RecognitionPreset::kSeed) {
     std::stable_sort(all.begin(), all.end(),
                      [](const Hypothesis& a, const Hypothesis& b) { return a.relativeScore() > b.relativeScore(); });
   } else {
     const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
+    // Before one answer per object: a dropped couch takes no chair's place.
+    if (floor_kind) dropSeatsUnderTops(all, floor_kind, to_gravity, options.scene_checks.seat_under_top, result.rejected);
     if (options.one_answer_per_object) {
       all = suppressOverlaps(std::move(all), to_gravity, options.suppression);
     } else {
@@ -530,7 +534,23 @@ void recognizePlanned(const std::vector<Member>& members, const Features& featur
   } else {
     all = std::move(peaks.front());
   }
-  selectHypotheses(std::move(all), features, options, result);
+  // What each category is to the check of a seat under a table's top, worked out once per call
+  // for the categories with answers.
+  std::map<std::string, FloorKind> kinds;
+  std::function<FloorKind(const std::string&)> floor_kind;
+  if (verifying && options.preset == RecognitionPreset::kDefault && options.scene_checks.top_extent.enabled) {
+    floor_kind = [&](const std::string& name) {
+      auto known = kinds.find(name);
+      if (known != kinds.end()) return known->second;
+      const CategoryModel* category = first.find(name);
+      const FloorKind kind = category ? floorKind(*category, options.scene_checks.top_extent,
+                                                  options.scene_checks.seat_run, options.scene_checks.seat_under_top)
+                                      : FloorKind::kOther;
+      kinds.emplace(name, kind);
+      return kind;
+    };
+  }
+  selectHypotheses(std::move(all), features, options, floor_kind, result);
   if (verifying && options.preset == RecognitionPreset::kDefault && options.suppression.top_support &&
       options.scene_checks.top_extent.enabled) {
     ScopedStage stage(&result.timings, "support");

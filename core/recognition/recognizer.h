@@ -65,7 +65,8 @@ struct RecognitionOptions {
   // under it, or deeper or shallower than the training tables', a chair or couch with too short a
   // run at seat height, with little measured at seat height over its footprint or with surface
   // standing over its top, and any hypothesis in a map with bare floor in the middle of its
-  // footprint are rejected; a couch over a level top is refuted.
+  // footprint are rejected; a couch over a level top is refuted. Across categories, of a couch and
+  // a table whose box covers a third of its footprint the less confident goes (seat_under_top.h).
   SceneCheckParams scene_checks;
   // Default preset, an ensemble (recognizeEnsemble): which models' peaks are one object's.
   EnsembleParams ensemble;

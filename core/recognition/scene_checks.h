@@ -18,6 +18,7 @@
 #include "core/recognition/open_top.h"
 #include "core/recognition/seat_area.h"
 #include "core/recognition/seat_run.h"
+#include "core/recognition/seat_under_top.h"
 #include "core/recognition/top_extent.h"
 #include "core/recognition/under_top.h"
 #include "core/recognition/verification.h"
@@ -31,6 +32,8 @@ struct SceneCheckParams {
   SeatAreaParams seat_area;
   OpenTopParams open_top;
   BareFloorParams bare_floor;
+  // Across categories, after every category's answers are checked: recognition only.
+  SeatUnderTopParams seat_under_top;
 };
 
 // What the scene says of a hypothesis: nothing against it; it contradicts it (the hypothesis

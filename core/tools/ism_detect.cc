@@ -80,6 +80,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-seat-run", no_seat_run,
                "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far "
                "as their category's shortest training shape's");
+  bool no_seat_under_top = false;
+  app.add_flag("--no-seat-under-top", no_seat_under_top,
+               "default preset: keep a couch of which a table's box covers a third of the footprint, and the less "
+               "confident table too");
   bool no_open_top = false;
   app.add_flag("--no-open-top", no_open_top,
                "default preset: keep chairs and couches with measured surface standing over their top, or none in the "
@@ -155,6 +159,7 @@ int main(int argc, char** argv) {
     options.scene_checks.bare_floor.enabled = !no_bare_floor;
     options.scene_checks.under_top.enabled = !no_under_top;
     options.scene_checks.seat_area.enabled = !no_seat_area;
+    options.scene_checks.seat_under_top.enabled = !no_seat_under_top;
     options.keep_votes = !debug_ply.empty();
     std::vector<ism::Model> loaded;
     for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));

@@ -93,6 +93,20 @@ Mesh merge(const Mesh& a, const Mesh& b) {
   return out;
 }
 
+std::vector<Eigen::Vector3f> boxSurface(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
+  std::vector<Eigen::Vector3f> points;
+  for (float x = lo.x(); x <= hi.x() + 1e-4f; x += 0.04f) {
+    for (float y = lo.y(); y <= hi.y() + 1e-4f; y += 0.04f) {
+      for (float z = lo.z(); z <= hi.z() + 1e-4f; z += 0.04f) {
+        const int on_faces = (x - lo.x() < 0.04f || hi.x() - x < 0.04f) + (y - lo.y() < 0.04f || hi.y() - y < 0.04f) +
+                             (z - lo.z() < 0.04f || hi.z() - z < 0.04f);
+        if (on_faces > 0) points.emplace_back(x, y, z);
+      }
+    }
+  }
+  return points;
+}
+
 Mesh syntheticFurniture(const std::string& category, int variant) {
   Mesh mesh;
   if (category == "dining_table") mesh = diningTable(variant);

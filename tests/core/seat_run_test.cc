@@ -49,28 +49,13 @@ Mesh couch(float length) {
                boxMesh({-length / 2, 0.25f, 0.45f}, {length / 2, 0.4f, 0.8f}));
 }
 
-// The points of a box's faces every 4 cm: a training shape's surface.
-std::vector<Eigen::Vector3f> surfaceOf(const Eigen::Vector3f& lo, const Eigen::Vector3f& hi) {
-  std::vector<Eigen::Vector3f> points;
-  for (float x = lo.x(); x <= hi.x() + 1e-4f; x += 0.04f) {
-    for (float y = lo.y(); y <= hi.y() + 1e-4f; y += 0.04f) {
-      for (float z = lo.z(); z <= hi.z() + 1e-4f; z += 0.04f) {
-        const int on_faces = (x - lo.x() < 0.04f || hi.x() - x < 0.04f) + (y - lo.y() < 0.04f || hi.y() - y < 0.04f) +
-                             (z - lo.z() < 0.04f || hi.z() - z < 0.04f);
-        if (on_faces > 0) points.emplace_back(x, y, z);
-      }
-    }
-  }
-  return points;
-}
-
 CategoryModel couchCategory() {
   CategoryModel category;
   category.name = "couch";
   TrainingObject object;
   object.size = {2.2f, 0.8f, 0.8f};
   object.center_height = 0.4f;
-  object.surface = surfaceOf({-1.1f, -0.4f, 0}, {1.1f, 0.4f, 0.8f});
+  object.surface = testing::boxSurface({-1.1f, -0.4f, 0}, {1.1f, 0.4f, 0.8f});
   category.objects.push_back(object);
   return category;
 }
