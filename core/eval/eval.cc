@@ -79,6 +79,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.scene_checks.under_top.enabled = recognition.under_top;
   options.scene_checks.seat_area.enabled = recognition.seat_area;
   options.scene_checks.seat_under_top.enabled = recognition.seat_under_top;
+  if (!recognition.top_height) options.scene_checks.top_extent.height_slack = 0;
   std::vector<const Model*> models = {&model};
   models.insert(models.end(), more.begin(), more.end());
   return recognizeEnsembleFeatures(models, features, options, scene).hypotheses;

@@ -55,6 +55,7 @@ struct EvalRecognition {
   bool hidden_top = true;      // TopExtentParams::max_hidden_run above 0
   bool top_support = true;     // SuppressionParams::top_support
   bool seat_under_top = true;  // SeatUnderTopParams::enabled
+  bool top_height = true;      // TopExtentParams::height_slack above 0
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

@@ -24,7 +24,9 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
     const bool closed = top == TopFound::kFound && checkUnderTop(scene, h, params_.under_top).closed();
     const bool off_prior = params_.top_extent.footprint_prior &&
                            !withinFootprintPrior(h, category_, to_gravity, prior_slack_);
-    if (topless || closed || off_prior || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
+    const bool off_height = top == TopFound::kFound && params_.top_extent.height_slack > 0 &&
+                            !withinHeightPrior(h, category_, to_gravity, params_.top_extent.height_slack);
+    if (topless || closed || off_prior || off_height || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
       return SceneVerdict::kRejected;
     }
     return SceneVerdict::kKept;

@@ -1,7 +1,7 @@
 #pragma once
 // The scene's checks of one category's verified hypotheses, in the order recognition applies
 // them after verification: a table's box becomes its measured top, the top must be there and of
-// a training table's depth (top_extent.h), and something must be seen under it (under_top.h); a
+// a training table's depth and height (top_extent.h), and something must be seen under it (under_top.h); a
 // chair's or couch's run at seat height must be long enough (seat_run.h), its seat must be
 // measured over its footprint (seat_area.h) and nothing may stand over its top (open_top.h); no
 // hypothesis in a map may have bare floor in the middle of its footprint (bare_floor.h); a couch

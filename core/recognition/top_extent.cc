@@ -141,6 +141,13 @@ bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& cat
                              [](const TrainingObject& o) { return !o.size_guessed; });
 }
 
+bool withinHeightPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
+                       float slack) {
+  return withinTrainingRange(category, [](const TrainingObject& o) { return o.size.z(); },
+                             uprightBoxOf(hypothesis.box, to_gravity).size.z(), slack,
+                             [](const TrainingObject& o) { return !o.size_guessed; });
+}
+
 TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, const TopExtentParams& params) {
   if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return TopFound::kNotLooked;
   const SceneBox local = sceneBox(scene, hypothesis);

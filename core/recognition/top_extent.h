@@ -42,6 +42,13 @@ struct TopExtentParams {
   // A top whose narrow side is outside the training shapes' narrow sides, give or take the priors'
   // slack, is dropped (withinFootprintPrior).
   bool footprint_prior = true;
+  // A top measured more than this below the lowest training table's top or above the highest one's
+  // (objects whose size was given) is dropped (m; 0: every height kept). Tables and desks are built
+  // to a few standard heights (0.72-0.78 m: the shipped tables span 0.72-0.78 m), unlike their
+  // lengths; a level surface well below them is a low table's, an armchair's arms or a bed's, one
+  // above them a counter's or a cabinet's. The slack is a Hough bin: the floor's estimate and
+  // the 2 cm layers the top is found in.
+  float height_slack = 0.1f;
   // A verified hypothesis of a flat-topped category whose top the scene does not show (no layer of
   // at least min_points measured points near the fitted top over its footprint) is dropped: a
   // table is its top. false keeps it with its fitted shape's box (ism-eval --keep-topless).
@@ -68,5 +75,12 @@ TopFound extendToTop(const VerificationScene& scene, Hypothesis& hypothesis, con
 // length.
 bool withinFootprintPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
                           float slack);
+
+// The height prior of a flat-topped category: whether the height of the hypothesis' upright box (in
+// the frame of `to_gravity`; extendToTop runs it from the floor to the measured top) lies within
+// the heights of the category's training objects whose size was given, give or take `slack` (m).
+// No such objects: no prior.
+bool withinHeightPrior(const Hypothesis& hypothesis, const CategoryModel& category, const Eigen::Matrix3f& to_gravity,
+                       float slack);
 
 }  // namespace ism

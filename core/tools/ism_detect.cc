@@ -80,6 +80,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-seat-run", no_seat_run,
                "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far "
                "as their category's shortest training shape's");
+  bool no_top_height = false;
+  app.add_flag("--no-top-height", no_top_height,
+               "default preset: keep tables whose measured top is more than 0.1 m lower or higher than every training "
+               "table's");
   bool no_seat_under_top = false;
   app.add_flag("--no-seat-under-top", no_seat_under_top,
                "default preset: keep a couch of which a table's box covers a third of the footprint, and the less "
@@ -160,6 +164,7 @@ int main(int argc, char** argv) {
     options.scene_checks.under_top.enabled = !no_under_top;
     options.scene_checks.seat_area.enabled = !no_seat_area;
     options.scene_checks.seat_under_top.enabled = !no_seat_under_top;
+    if (no_top_height) options.scene_checks.top_extent.height_slack = 0;
     options.keep_votes = !debug_ply.empty();
     std::vector<ism::Model> loaded;
     for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));

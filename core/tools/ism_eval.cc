@@ -149,7 +149,11 @@ int main(int argc, char** argv) {
   bool no_under_top = false;
   bool no_seat_area = false;
   bool no_seat_under_top = false;
+  bool no_top_height = false;
   for (CLI::App* sub : {baseline, real}) {
+    sub->add_flag("--no-top-height", no_top_height,
+                  "default preset: keep tables whose measured top is more than 0.1 m lower or higher than every "
+                  "training table's (top_extent.h)");
     sub->add_flag("--no-seat-under-top", no_seat_under_top,
                   "default preset: keep a couch of which a table's box covers a third of the footprint, and the less "
                   "confident table too (seat_under_top.h)");
@@ -232,6 +236,7 @@ int main(int argc, char** argv) {
       recognition.under_top = !no_under_top;
       recognition.seat_area = !no_seat_area;
       recognition.seat_under_top = !no_seat_under_top;
+      recognition.top_height = !no_top_height;
       auto result = ism::runBaseline(split, training, recognition);
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
@@ -241,7 +246,7 @@ int main(int argc, char** argv) {
                             map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
                             fit_terms, !keep_topless, !no_seat_run, !no_open_top, !no_upper_part, !no_level_top, !no_bare_floor,
                             !no_under_top, !no_seat_area, !own_peak_support, !no_hidden_top,
-                            !own_peak_support && !merged_top_support, !no_seat_under_top};
+                            !own_peak_support && !merged_top_support, !no_seat_under_top, !no_top_height};
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;

@@ -161,13 +161,19 @@ TEST(TopExtent, TheTopContinuesPastTheSwathAChairsBackHides) {
   EXPECT_LT(uprightBoxOf(h.box, Eigen::Matrix3f::Identity()).size.x(), 1.8f);
 }
 
-TEST(TopExtent, TheFootprintPriorBoundsATopsDepthNotItsLength) {
+// A table category whose training objects have these sizes (no shapes).
+CategoryModel tablesOfSizes(const std::vector<Eigen::Vector3f>& sizes) {
   CategoryModel tables;
-  for (const Eigen::Vector3f& size : {Eigen::Vector3f(1.1f, 0.7f, 0.75f), Eigen::Vector3f(1.24f, 1.24f, 0.74f)}) {
+  for (const Eigen::Vector3f& size : sizes) {
     TrainingObject object;
     object.size = size;
     tables.objects.push_back(object);
   }
+  return tables;
+}
+
+TEST(TopExtent, TheFootprintPriorBoundsATopsDepthNotItsLength) {
+  const CategoryModel tables = tablesOfSizes({{1.1f, 0.7f, 0.75f}, {1.24f, 1.24f, 0.74f}});
   const auto top = [](float x, float y, float yaw) {
     UprightBox box;
     box.size = {x, y, 0.75f};
@@ -196,6 +202,30 @@ TEST(TopExtent, TheFootprintPriorBoundsATopsDepthNotItsLength) {
   EXPECT_FALSE(withinFootprintPrior(top(1.6f, 1.2f, 0.0f), mixed, up, 0.3f));
   EXPECT_TRUE(withinFootprintPrior(top(1.6f, 0.9f, 0.0f), mixed, up, 0.3f));
   EXPECT_TRUE(withinFootprintPrior(top(1.6f, 1.2f, 0.0f), tables, up, 0.3f));
+}
+
+TEST(TopExtent, TheHeightPriorBoundsATopsHeight) {
+  const CategoryModel tables = tablesOfSizes({{1.1f, 0.7f, 0.72f}, {1.24f, 1.24f, 0.78f}});
+  // A top measured at `height` above the floor, as extendToTop boxes it.
+  const auto top = [](float height) {
+    UprightBox box;
+    box.size = {1.6f, 0.8f, height};
+    box.center = {0.3f, -0.2f, height / 2};
+    box.yaw = 0.4f;
+    Hypothesis h;
+    h.box = box.toScene(Eigen::Matrix3f::Identity());
+    return h;
+  };
+  const Eigen::Matrix3f up = Eigen::Matrix3f::Identity();
+  EXPECT_TRUE(withinHeightPrior(top(0.75f), tables, up, 0.1f));
+  EXPECT_TRUE(withinHeightPrior(top(0.63f), tables, up, 0.1f)) << "0.72 m less the slack";
+  EXPECT_TRUE(withinHeightPrior(top(0.87f), tables, up, 0.1f)) << "0.78 m and the slack";
+  EXPECT_FALSE(withinHeightPrior(top(0.58f), tables, up, 0.1f)) << "an armchair's arms, a low table";
+  EXPECT_FALSE(withinHeightPrior(top(0.92f), tables, up, 0.1f)) << "a counter";
+  EXPECT_TRUE(withinHeightPrior(top(0.58f), CategoryModel{}, up, 0.1f)) << "no objects, no prior";
+  CategoryModel guessed = tables;
+  for (auto& o : guessed.objects) o.size_guessed = true;
+  EXPECT_TRUE(withinHeightPrior(top(0.58f), guessed, up, 0.1f)) << "heights of meshes scaled to the typical box";
 }
 
 TEST(TopExtent, TablesAreFlatToppedChairsAndCouchesAreNot) {
