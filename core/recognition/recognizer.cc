@@ -443,7 +443,9 @@ void selectHypotheses(std::vector<Hypothesis> all, const Features& features, con
   } else {
     const Eigen::Matrix3f to_gravity = features.gravity ? features.gravity->toGravity() : Eigen::Matrix3f::Identity();
     // Before one answer per object: a dropped couch takes no chair's place.
-    if (floor_kind) dropSeatsUnderTops(all, floor_kind, to_gravity, options.scene_checks.seat_under_top, result.rejected);
+    if (floor_kind) {
+      dropSeatsUnderTops(all, floor_kind, to_gravity, options.scene_checks.seat_under_top, result.rejected);
+    }
     if (options.one_answer_per_object) {
       all = suppressOverlaps(std::move(all), to_gravity, options.suppression);
     } else {

@@ -62,11 +62,12 @@ struct RecognitionOptions {
   VerificationParams verification;
   // Default preset, verified hypotheses: checked against the scene around them (scene_checks.h).
   // A table's box spans the scene's top surface there; a table without a top, with nothing seen
-  // under it, deeper or shallower, lower or higher than the training tables', a chair or couch with too short a
-  // run at seat height, with little measured at seat height over its footprint or with surface
-  // standing over its top, and any hypothesis in a map with bare floor in the middle of its
-  // footprint are rejected; a couch over a level top is refuted. Across categories, of a couch and
-  // a table whose box covers a third of its footprint the less confident goes (seat_under_top.h).
+  // under it, deeper or shallower, lower or higher than the training tables', a chair or couch
+  // with too short a run at seat height, with little measured at seat height over its footprint or
+  // with surface standing over its top, and any hypothesis in a map with bare floor in the middle
+  // of its footprint are rejected; a couch over a level top is refuted. Across categories, of a
+  // couch and a table whose box covers a third of its footprint the less confident goes
+  // (seat_under_top.h).
   SceneCheckParams scene_checks;
   // Default preset, an ensemble (recognizeEnsemble): which models' peaks are one object's.
   EnsembleParams ensemble;

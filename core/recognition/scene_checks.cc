@@ -26,7 +26,8 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
                            !withinFootprintPrior(h, category_, to_gravity, prior_slack_);
     const bool off_height = top == TopFound::kFound && params_.top_extent.height_slack > 0 &&
                             !withinHeightPrior(h, category_, to_gravity, params_.top_extent.height_slack);
-    if (topless || closed || off_prior || off_height || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
+    if (topless || closed || off_prior || off_height ||
+        checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
       return SceneVerdict::kRejected;
     }
     return SceneVerdict::kKept;

@@ -44,10 +44,10 @@ struct TopExtentParams {
   bool footprint_prior = true;
   // A top measured more than this below the lowest training table's top or above the highest one's
   // (objects whose size was given) is dropped (m; 0: every height kept). Tables and desks are built
-  // to a few standard heights (0.72-0.78 m: the shipped tables span 0.72-0.78 m), unlike their
-  // lengths; a level surface well below them is a low table's, an armchair's arms or a bed's, one
-  // above them a counter's or a cabinet's. The slack is a Hough bin: the floor's estimate and
-  // the 2 cm layers the top is found in.
+  // to a few standard heights (the shipped training tables span 0.72-0.78 m), unlike their lengths;
+  // a level surface well below them is a low table's, an armchair's arms or a bed's, one above them
+  // a counter's or a cabinet's. The slack is a Hough bin, for the floor's estimate and the 2 cm
+  // layers the top is found in.
   float height_slack = 0.1f;
   // A verified hypothesis of a flat-topped category whose top the scene does not show (no layer of
   // at least min_points measured points near the fitted top over its footprint) is dropped: a

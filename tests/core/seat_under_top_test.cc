@@ -31,12 +31,15 @@ TEST(SeatUnderTop, ACategoryIsATopALongSeatOrNeither) {
   const TopExtentParams top;
   const SeatRunParams seat;
   // A table: a 1.2 x 0.8 m top 0.72-0.76 m high on one leg; a couch 1.8 m long; a chair 0.5 m wide.
-  const CategoryModel table = category("dining_table", {1.2f, 0.8f, 0.76f},
-                                       {{{-0.6f, -0.4f, 0.72f}, {0.6f, 0.4f, 0.76f}}, {{-0.04f, -0.04f, 0}, {0.04f, 0.04f, 0.72f}}});
-  const CategoryModel couch = category("couch", {1.8f, 0.9f, 0.85f},
-                                       {{{-0.9f, -0.45f, 0}, {0.9f, 0.45f, 0.45f}}, {{-0.9f, 0.3f, 0.45f}, {0.9f, 0.45f, 0.85f}}});
-  const CategoryModel chair = category("dining_chair", {0.5f, 0.5f, 0.9f},
-                                       {{{-0.25f, -0.25f, 0.4f}, {0.25f, 0.25f, 0.45f}}, {{-0.25f, 0.2f, 0.45f}, {0.25f, 0.25f, 0.9f}}});
+  const CategoryModel table =
+      category("dining_table", {1.2f, 0.8f, 0.76f},
+               {{{-0.6f, -0.4f, 0.72f}, {0.6f, 0.4f, 0.76f}}, {{-0.04f, -0.04f, 0}, {0.04f, 0.04f, 0.72f}}});
+  const CategoryModel couch =
+      category("couch", {1.8f, 0.9f, 0.85f},
+               {{{-0.9f, -0.45f, 0}, {0.9f, 0.45f, 0.45f}}, {{-0.9f, 0.3f, 0.45f}, {0.9f, 0.45f, 0.85f}}});
+  const CategoryModel chair =
+      category("dining_chair", {0.5f, 0.5f, 0.9f},
+               {{{-0.25f, -0.25f, 0.4f}, {0.25f, 0.25f, 0.45f}}, {{-0.25f, 0.2f, 0.45f}, {0.25f, 0.25f, 0.9f}}});
   EXPECT_EQ(floorKind(table, top, seat), FloorKind::kTop);
   EXPECT_EQ(floorKind(couch, top, seat), FloorKind::kLongSeat);
   EXPECT_EQ(floorKind(chair, top, seat), FloorKind::kOther) << "a chair's seat runs 0.5 m";
