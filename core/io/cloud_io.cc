@@ -116,8 +116,10 @@ void requireReadableFile(const std::string& path) {
 }
 
 // PCL 1.13's PLYReader aborts the process (assert) on a header line that starts with a blank or
-// holds a control character, on a vertex element with some but not all of red, green and blue,
-// with a colour channel other than uchar or with a list property, and it allocates the header's
+// holds a control character, on a vertex element whose colour is not one each of red, green and
+// blue (or of diffuse_red, diffuse_green and diffuse_blue, which it reads as colour too), red before
+// blue (the blue channel writes the packed colour where the red one began) and alpha after red,
+// with a colour channel other than uchar, with a list property or with a second vertex element, and it allocates the header's
 // vertex count before reading a vertex, gigabytes for a 100-byte file (all found by tests/fuzz):
 // the header is checked first. Every vertex takes at least a byte of the file.
 void requireSupportedPlyHeader(const std::string& path) {
@@ -125,7 +127,9 @@ void requireSupportedPlyHeader(const std::string& path) {
   const auto file_size = static_cast<long long>(std::filesystem::file_size(path));
   std::string line;
   bool in_vertex = false;
-  int colors = 0;
+  int vertex_elements = 0;
+  std::vector<std::string> colour;  // the vertex element's colour channels, in order
+  bool alpha_before_red = false;
   for (int n = 0; n < 10000 && std::getline(in, line); ++n) {
     if (!line.empty() && line.back() == '\r') line.pop_back();
     const auto control = std::find_if(line.begin(), line.end(), [](unsigned char c) { return c < 0x20 || c == 0x7f; });
@@ -141,6 +145,9 @@ void requireSupportedPlyHeader(const std::string& path) {
       std::string name, count_text;
       words >> name >> count_text;
       in_vertex = name == "vertex";
+      if (in_vertex && ++vertex_elements > 1) {
+        throw Error(ErrorCode::kInvalidInput, path + ": the PLY header has a second vertex element");
+      }
       long long count = -1;
       if (!(std::istringstream(count_text) >> count)) count = -1;
       if (in_vertex && (count < 0 || count > file_size)) {
@@ -155,17 +162,32 @@ void requireSupportedPlyHeader(const std::string& path) {
                                                     "vertex properties (x, y, z, red, green, blue...) are supported");
       }
       words >> name;
-      const bool color = name == "red" || name == "green" || name == "blue";
+      const std::string channel = name.rfind("diffuse_", 0) == 0 ? name.substr(8) : name;
+      const bool color = channel == "red" || channel == "green" || channel == "blue";
       if ((color || name == "alpha") && type != "uchar" && type != "uint8") {
         throw Error(ErrorCode::kInvalidInput, path + ": vertex property " + name + " is " + type +
                                                   "; colour channels must be uchar");
       }
-      if (color) ++colors;
+      if (color) colour.push_back(name);
+      if (name == "alpha" && std::none_of(colour.begin(), colour.end(), [](const std::string& c) {
+            return c == "red" || c == "diffuse_red";
+          })) {
+        alpha_before_red = true;
+      }
     }
   }
-  if (colors != 0 && colors != 3) {
-    throw Error(ErrorCode::kInvalidInput, path + ": vertex colour needs red, green and blue properties, the header has " +
-                                              std::to_string(colors) + " of them");
+  // Three channels of one naming, each once, red before blue.
+  const auto named = [&](const std::string& prefix) {
+    const auto at = [&](const std::string& name) { return std::find(colour.begin(), colour.end(), prefix + name); };
+    return colour.size() == 3 && at("green") != colour.end() && at("blue") != colour.end() && at("red") < at("blue");
+  };
+  if ((!colour.empty() && !named("") && !named("diffuse_")) || alpha_before_red) {
+    std::string names;
+    for (const auto& c : colour) names += (names.empty() ? "" : ", ") + c;
+    throw Error(ErrorCode::kInvalidInput,
+                path + ": vertex colour needs one each of red, green and blue (or of diffuse_red, diffuse_green and "
+                       "diffuse_blue), red before blue and alpha after red; the header has " +
+                    (names.empty() ? std::string("none") : names) + (alpha_before_red ? " and alpha before red" : ""));
   }
 }
 

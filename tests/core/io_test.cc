@@ -189,17 +189,34 @@ TEST_F(IoTest, FuzzFindingsAreRefusedWithAnError) {
   writeFileBytes(path("size_type.pcd"), "VERSION .7\nFIELDS x y z\nSIZE 8 40 0\nPOINTS 2\nDATA ascii\n"
                                         "0.0 0.0 1.0\n0.1 0.0 1.05\n");
   expectError([&] { loadCloudFile(path("size_type.pcd")); }, ErrorCode::kInvalidInput, path("size_type.pcd"));
-  writeFileBytes(path("blue.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
-                                   "property float z\nproperty uchar blue\nend_header\n1 2 3 4\n");
-  expectError([&] { loadCloudFile(path("blue.ply")); }, ErrorCode::kInvalidInput, "red, green and blue");
-  writeFileBytes(path("vertex_list.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                                          "property float y\nproperty float z\nproperty list uchar int ids\n"
-                                          "end_header\n1 2 3 2 7 8\n");
-  expectError([&] { loadCloudFile(path("vertex_list.ply")); }, ErrorCode::kInvalidInput, "list property");
-  writeFileBytes(path("char_red.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
-                                       "property float y\nproperty float z\nproperty char red\nproperty uchar green\n"
-                                       "property uchar blue\nend_header\n1 2 3 4 5 6\n");
-  expectError([&] { loadCloudFile(path("char_red.ply")); }, ErrorCode::kInvalidInput, "red is char");
+  // One vertex with x, y, z and the given properties and values.
+  const auto vertexPly = [](const std::string& properties, const std::string& values) {
+    return "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\nproperty float z\n" +
+           properties + "end_header\n1 2 3" + values + "\n";
+  };
+  const std::string rgb = "property uchar red\nproperty uchar green\nproperty uchar blue\n";
+  const std::pair<std::string, std::string> refused[] = {
+      {"property uchar blue\n", "red, green and blue"},
+      {"property uchar diffuse_blue\n", "red, green and blue"},
+      {rgb + "property uchar diffuse_red\nproperty uchar diffuse_green\nproperty uchar diffuse_blue\n",
+       "red, green and blue"},
+      {"property uchar blue\nproperty uchar green\nproperty uchar red\n", "red before blue"},
+      {"property uchar alpha\n" + rgb, "alpha after red"},
+      {"property uchar red\nproperty uchar green\nproperty uchar green\n", "red, green and blue"},
+      {"property list uchar int ids\n", "list property"},
+      {"property char red\nproperty uchar green\nproperty uchar blue\n", "red is char"},
+  };
+  for (const auto& [properties, needle] : refused) {
+    writeFileBytes(path("colour.ply"), vertexPly(properties, " 4 5 6 7 8 9"));
+    expectError([&] { loadCloudFile(path("colour.ply")); }, ErrorCode::kInvalidInput, needle);
+  }
+  writeFileBytes(path("diffuse.ply"),
+                 vertexPly("property uchar diffuse_red\nproperty uchar diffuse_green\nproperty uchar diffuse_blue\n",
+                           " 4 5 6"));
+  EXPECT_EQ(loadCloudFile(path("diffuse.ply")).cloud->size(), 1u) << "the three diffuse channels are colour";
+  writeFileBytes(path("two_vertex.ply"), "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+                                         "element vertex 1\nproperty float y\nend_header\n1\n2\n");
+  expectError([&] { loadCloudFile(path("two_vertex.ply")); }, ErrorCode::kInvalidInput, "second vertex element");
   writeFileBytes(path("obj_info.ply"), "ply\n\vobj_info x\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
                                        "property float y\nproperty float z\nend_header\n1 2 3\n");
   expectError([&] { loadCloudFile(path("obj_info.ply")); }, ErrorCode::kInvalidInput, "line 2 starts with a blank");
