@@ -208,7 +208,32 @@ int main(int argc, char** argv) {
 
   CLI11_PARSE(app, argc, argv);
 
+  // What is recognised and how, for either subcommand: the options only `real` offers keep their
+  // defaults, which are EvalRecognition's, under `baseline`.
+  ism::EvalRecognition recognition;
   try {
+    recognition.preset = ism::parseRecognitionPreset(preset);
+    recognition.min_confidence = min_confidence;
+    recognition.verify = !no_verify;
+    recognition.shared_surface = !centre_suppression;
+    recognition.maps_in_3d = map_verification == "3d";
+    recognition.top_extent = !no_top_extent;
+    recognition.footprint_prior = !no_footprint_prior;
+    recognition.icp_iterations = icp_iterations;
+    recognition.fit_terms = fit_terms;
+    recognition.require_top = !keep_topless;
+    recognition.seat_run = !no_seat_run;
+    recognition.open_top = !no_open_top;
+    recognition.upper_part = !no_upper_part;
+    recognition.level_top = !no_level_top;
+    recognition.bare_floor = !no_bare_floor;
+    recognition.under_top = !no_under_top;
+    recognition.seat_area = !no_seat_area;
+    recognition.merge_support = !own_peak_support;
+    recognition.hidden_top = !no_hidden_top;
+    recognition.top_support = !own_peak_support && !merged_top_support;
+    recognition.seat_under_top = !no_seat_under_top;
+    recognition.top_height = !no_top_height;
     std::string text, json;
     if (baseline->parsed()) {
       if (manifest.empty() && folders.empty() && train_list.empty()) {
@@ -223,30 +248,12 @@ int main(int argc, char** argv) {
       }
       training.progress = progress;
       if (training_seed) ism::reseed(training, *training_seed);
-      ism::EvalRecognition recognition{ism::parseRecognitionPreset(preset), min_confidence};
-      recognition.top_extent = !no_top_extent;
-      recognition.footprint_prior = !no_footprint_prior;
-      recognition.hidden_top = !no_hidden_top;
-      recognition.require_top = !keep_topless;
-      recognition.seat_run = !no_seat_run;
-      recognition.open_top = !no_open_top;
-      recognition.upper_part = !no_upper_part;
-      recognition.level_top = !no_level_top;
-      recognition.bare_floor = !no_bare_floor;
-      recognition.under_top = !no_under_top;
-      recognition.seat_area = !no_seat_area;
-      recognition.seat_under_top = !no_seat_under_top;
-      recognition.top_height = !no_top_height;
       auto result = ism::runBaseline(split, training, recognition);
       text = ism::formatBaseline(result);
       json = ism::baselineToJson(result);
     } else {
       ism::RealEvalParams params;
-      params.recognition = {ism::parseRecognitionPreset(preset), min_confidence, !no_verify, !centre_suppression,
-                            map_verification == "3d", !no_top_extent, !no_footprint_prior, icp_iterations,
-                            fit_terms, !keep_topless, !no_seat_run, !no_open_top, !no_upper_part, !no_level_top, !no_bare_floor,
-                            !no_under_top, !no_seat_area, !own_peak_support, !no_hidden_top,
-                            !own_peak_support && !merged_top_support, !no_seat_under_top, !no_top_height};
+      params.recognition = recognition;
       for (const auto& spec : mappings) ism::addCategoryMapping(params.mapping, spec);
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;
