@@ -119,9 +119,10 @@ void requireReadableFile(const std::string& path) {
 // holds a control character, on a vertex element whose colour is not one each of red, green and
 // blue (or of diffuse_red, diffuse_green and diffuse_blue, which it reads as colour too), red before
 // blue (the blue channel writes the packed colour where the red one began) and alpha after red,
-// with a colour channel other than uchar, with a list property or with a second vertex element, and it allocates the header's
-// vertex count before reading a vertex, gigabytes for a 100-byte file (all found by tests/fuzz):
-// the header is checked first. Every vertex takes at least a byte of the file.
+// with a colour channel other than uchar, with a list property or with a second vertex element,
+// and it allocates the header's vertex count before reading a vertex, gigabytes for a 100-byte file
+// (all found by tests/fuzz): the header is checked first. Every vertex takes at least a byte of the
+// file.
 void requireSupportedPlyHeader(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   const auto file_size = static_cast<long long>(std::filesystem::file_size(path));
