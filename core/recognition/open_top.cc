@@ -24,7 +24,8 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
     const float height = p.z() - local.floor_z;
     const bool over = local.overFootprint(p);
     if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
-    if (check.max_run_on > 0 && !over && height > params.run_from && height < params.run_to) {
+    if (check.max_run_on > 0 && !over && height > params.run_from &&
+        height < std::max(params.run_to, params.run_level_cap)) {
       const Eigen::Vector3f q = local.boxFrame(p);
       if (std::abs(q.x()) < local.box.size.x() / 2 + reach && std::abs(q.y()) < local.box.size.y() / 2 + reach) {
         beside.push_back(q);
@@ -54,10 +55,18 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
   // each runs along the middle `inner` of its side.
   const float side[2] = {params.inner * depth, params.inner * width};
   const int along[2] = {std::max(1, static_cast<int>(side[0] / cell)), std::max(1, static_cast<int>(side[1] / cell))};
+  const bool level = params.run_level_to > params.run_from;
+  constexpr float kNone = -std::numeric_limits<float>::infinity();
   std::vector<uint8_t> filled[4];
-  for (int s = 0; s < 4; ++s) filled[s].assign(static_cast<size_t>(along[s / 2] * across), 0);
+  std::vector<float> highest[4];
+  for (int s = 0; s < 4; ++s) {
+    filled[s].assign(static_cast<size_t>(along[s / 2] * across), 0);
+    highest[s].assign(filled[s].size(), kNone);
+  }
   for (const auto& p : points) {
-    if (p.z() <= params.run_from || p.z() >= params.run_to) continue;
+    const bool seat = p.z() > params.run_from && p.z() < params.run_to;
+    const bool below_cap = level && p.z() > params.run_from && p.z() < params.run_level_cap;
+    if (!seat && !below_cap) continue;
     for (int s = 0; s < 4; ++s) {
       const int axis = s / 2;
       const float sign = s % 2 == 0 ? 1.0f : -1.0f;
@@ -66,13 +75,27 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
       if (!(out >= params.run_near && out < params.run_far && at >= 0 && at < side[axis])) continue;  // NaN too
       const int u = std::min(along[axis] - 1, static_cast<int>(at / side[axis] * static_cast<float>(along[axis])));
       const int v = std::min(across - 1, static_cast<int>((out - params.run_near) / cell));
-      filled[s][static_cast<size_t>(u * across + v)] = 1;
+      const auto c = static_cast<size_t>(u * across + v);
+      if (seat) filled[s][c] = 1;
+      if (below_cap) highest[s][c] = std::max(highest[s][c], p.z());
     }
   }
   float most = 0;
-  for (const auto& strip : filled) {
-    const auto n = std::count(strip.begin(), strip.end(), uint8_t{1});
-    most = std::max(most, static_cast<float>(n) / static_cast<float>(strip.size()));
+  for (int s = 0; s < 4; ++s) {
+    const auto cells = static_cast<float>(filled[s].size());
+    most = std::max(most, static_cast<float>(std::count(filled[s].begin(), filled[s].end(), uint8_t{1})) / cells);
+    if (!level) continue;
+    std::vector<float> tops;  // the cells whose highest point is a surface up to run_level_to
+    for (const float h : highest[s]) {
+      if (std::isfinite(h) && h < params.run_level_to) tops.push_back(h);
+    }
+    std::sort(tops.begin(), tops.end());
+    size_t in_band = 0;
+    for (size_t lo = 0, hi = 0; hi < tops.size(); ++hi) {
+      while (tops[hi] - tops[lo] >= params.level_band) ++lo;
+      in_band = std::max(in_band, hi - lo + 1);
+    }
+    most = std::max(most, static_cast<float>(in_band) / cells);
   }
   return most;
 }

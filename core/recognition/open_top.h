@@ -59,6 +59,12 @@ struct OpenTopParams {
   // no true sofa (docs/EVALUATION.md, "A bed's mattress beside a couch"). 0: not looked at.
   float run_near = 0.05f, run_far = 0.55f, run_cell = 0.1f;
   float run_from = 0.35f, run_to = 0.7f;
+  // A cell is also filled where its highest measured point below run_level_cap lies from run_from
+  // to run_level_to, when max_run_on of the strip's cells hold theirs within one level_band: a
+  // level surface up to a tall bed's mattress (0.74-0.77 m on SUN RGB-D's val_000004), while a
+  // corner sofa's next seat and back, or a wall (its cells reach the cap), make no one level.
+  // run_level_to <= run_from: not looked at (docs/EVALUATION.md, "A tall bed's mattress").
+  float run_level_to = 0.8f, run_level_cap = 1.0f;
   float max_run_on = 0.8f;
 };
 
@@ -97,7 +103,8 @@ float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float 
                  const OpenTopParams& params = {});
 
 // The share of filled cells in the most filled of the four strips beside a footprint `width` x
-// `depth` (OpenTopParams::run_near ... max_run_on): `points` are (x, y, height above the floor)
+// `depth` (OpenTopParams::run_near ... max_run_on), filled by a point at a seat's height or by the
+// cells' level highest points, whichever fills more: `points` are (x, y, height above the floor)
 // about the footprint's centre, along its sides.
 float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, const OpenTopParams& params = {});
 

@@ -119,6 +119,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-level-top", no_level_top,
                "default preset: keep couches over whose footprint the measured surface is one level, or beside "
                "which it runs on at a seat's height, as a bed's mattress does");
+  bool no_level_run_on = false;
+  app.add_flag("--no-level-run-on", no_level_run_on,
+               "default preset: keep couches beside which the measured surface runs on level above a seat's height, "
+               "up to a tall bed's mattress at 0.8 m, when none runs on at a seat's height");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -160,6 +164,7 @@ int main(int argc, char** argv) {
     options.scene_checks.open_top.enabled = !no_open_top;
     if (no_upper_part) options.scene_checks.open_top.min_upper = 0;
     if (no_level_top) options.scene_checks.open_top.max_level = 0;
+    if (no_level_run_on) options.scene_checks.open_top.run_level_to = 0;
     options.scene_checks.bare_floor.enabled = !no_bare_floor;
     options.scene_checks.under_top.enabled = !no_under_top;
     options.scene_checks.seat_area.enabled = !no_seat_area;

@@ -145,6 +145,7 @@ int main(int argc, char** argv) {
   bool no_open_top = false;
   bool no_upper_part = false;
   bool no_level_top = false;
+  bool no_level_run_on = false;
   bool no_bare_floor = false;
   bool no_under_top = false;
   bool no_seat_area = false;
@@ -166,6 +167,9 @@ int main(int argc, char** argv) {
     sub->add_flag("--no-level-top", no_level_top,
                   "default preset: keep couches over whose footprint the measured surface is one level, or beside "
                   "which it runs on at a seat's height, as a bed's mattress does (open_top.h)");
+    sub->add_flag("--no-level-run-on", no_level_run_on,
+                  "default preset: keep couches beside which the measured surface runs on level above a seat's "
+                  "height, up to a tall bed's mattress at 0.8 m, when none runs on at a seat's height (open_top.h)");
     sub->add_flag("--no-bare-floor", no_bare_floor,
                   "default preset: keep hypotheses with bare floor in the middle of their footprint (bare_floor.h)");
     sub->add_flag("--no-under-top", no_under_top,
@@ -226,6 +230,7 @@ int main(int argc, char** argv) {
     recognition.open_top = !no_open_top;
     recognition.upper_part = !no_upper_part;
     recognition.level_top = !no_level_top;
+    recognition.level_run_on = !no_level_run_on;
     recognition.bare_floor = !no_bare_floor;
     recognition.under_top = !no_under_top;
     recognition.seat_area = !no_seat_area;

@@ -185,6 +185,43 @@ TEST(OpenTop, ACouchWhoseSeatHeightSurfaceRunsOnIsRefuted) {
   EXPECT_FALSE(checkOpenTop(bed, verifiedCouchAt(0.0f), off).runsOn());
 }
 
+// A tall bed's mattress, level at 0.76 m behind the couch's back (SUN RGB-D's val_000004), lies
+// above a seat's height, but runs on as one level: refuted. The level part off, it is not.
+TEST(OpenTop, ACouchBeforeATallBedsLevelMattressIsRefuted) {
+  VerificationScene bed = couchOnTheFloor();
+  plate(bed.points, -1.0f, 1.0f, 0.5f, 2.1f, 0.76f);
+  const OpenTopCheck end = checkOpenTop(bed, verifiedCouchAt(0.0f));
+  EXPECT_GT(end.run_on_share, 0.95f);
+  EXPECT_TRUE(end.refuted());
+  OpenTopParams seat_band_only;
+  seat_band_only.run_level_to = seat_band_only.run_from;
+  const OpenTopCheck seat = checkOpenTop(bed, verifiedCouchAt(0.0f), seat_band_only);
+  EXPECT_LT(seat.run_on_share, 0.05f) << "no point at a seat's height past a side";
+  EXPECT_FALSE(seat.refuted());
+}
+
+// The level part counts the cells whose highest point below the cap lies in one band: two levels
+// fill a strip by halves, a wall's cells reach the cap and fill none.
+TEST(OpenTop, TheRunOnShareOfALevelSurfaceTakesOneBand) {
+  std::vector<Eigen::Vector3f> tall;  // the strip past -x of a 2 x 1 m footprint, at 0.76 m
+  plate(tall, -1.54f, -1.06f, -0.38f, 0.38f, 0.76f);
+  EXPECT_NEAR(runOnShare(tall, 2.0f, 1.0f), 1.0f, 0.05f);
+  std::vector<Eigen::Vector3f> steps;  // half of it at 0.76 m, half at 0.5 m
+  plate(steps, -1.54f, -1.06f, -0.38f, -0.02f, 0.76f);
+  plate(steps, -1.54f, -1.06f, 0.02f, 0.38f, 0.5f);
+  OpenTopParams level_only;
+  level_only.run_to = level_only.run_from;
+  EXPECT_NEAR(runOnShare(steps, 2.0f, 1.0f, level_only), 0.5f, 0.1f);
+  EXPECT_NEAR(runOnShare(steps, 2.0f, 1.0f), 0.5f, 0.1f) << "the seat's band holds the lower half";
+  std::vector<Eigen::Vector3f> walls = tall;  // walls across the strip, every 10 cm out
+  for (float x = -1.5f; x < -1.05f; x += 0.1f) {
+    for (float y = -0.38f; y <= 0.38f; y += 0.05f) {
+      for (float z = 0.0f; z < 2.0f; z += 0.05f) walls.emplace_back(x, y, z);
+    }
+  }
+  EXPECT_LT(runOnShare(walls, 2.0f, 1.0f, level_only), 0.05f);
+}
+
 TEST(OpenTop, TheRunOnShareCountsTheFullestStrip) {
   std::vector<Eigen::Vector3f> points;  // beside a 2 x 1 m footprint: half of the strip past +y
   plate(points, 0.0f, 0.78f, 0.56f, 1.04f, 0.5f);
