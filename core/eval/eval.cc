@@ -76,6 +76,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   if (!recognition.upper_part) options.scene_checks.open_top.min_upper = 0;
   if (!recognition.level_top) options.scene_checks.open_top.max_level = 0;
   if (!recognition.level_run_on) options.scene_checks.open_top.run_level_to = 0;
+  options.scene_checks.open_top.behind_back = recognition.behind_back;
   options.scene_checks.bare_floor.enabled = recognition.bare_floor;
   options.scene_checks.under_top.enabled = recognition.under_top;
   options.scene_checks.seat_area.enabled = recognition.seat_area;

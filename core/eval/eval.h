@@ -49,6 +49,7 @@ struct EvalRecognition {
   bool upper_part = true;      // OpenTopParams::min_upper above 0
   bool level_top = true;       // OpenTopParams::max_level above 0
   bool level_run_on = true;    // OpenTopParams::run_level_to above run_from
+  bool behind_back = true;     // OpenTopParams::behind_back
   bool bare_floor = true;      // BareFloorParams::enabled
   bool under_top = true;       // UnderTopParams::enabled
   bool seat_area = true;       // SeatAreaParams::enabled

@@ -1,6 +1,7 @@
 #include "core/recognition/open_top.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <limits>
@@ -8,47 +9,28 @@
 
 namespace ism {
 
-OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params) {
-  OpenTopCheck check;
-  if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return check;
-  const SceneBox local = sceneBox(scene, hypothesis);
-  const float top = local.top();
-  check.looked = true;
-  check.max_share = params.max_share;
-  check.min_upper = params.min_upper;
-  check.max_level = params.max_level;
-  check.max_run_on = params.max_level > 0 ? params.max_run_on : 0.0f;
-  std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
-  const float reach = params.run_far;
-  for (const auto& p : scene.points) {
-    const float height = p.z() - local.floor_z;
-    const bool over = local.overFootprint(p);
-    if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
-    if (check.max_run_on > 0 && !over && height > params.run_from &&
-        height < std::max(params.run_to, params.run_level_cap)) {
-      const Eigen::Vector3f q = local.boxFrame(p);
-      if (std::abs(q.x()) < local.box.size.x() / 2 + reach && std::abs(q.y()) < local.box.size.y() / 2 + reach) {
-        beside.push_back(q);
-      }
-    }
-    if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
-    // The inner part of the footprint lies within it (most of the scene is over neither).
-    if (!over && params.inner <= 1) continue;
-    if (!local.overFootprint(p, params.inner)) continue;
-    if (p.z() > top + params.from && p.z() < top + params.to) {
-      ++check.above;
-    } else if (p.z() > local.floor_z + params.body_from && p.z() < top) {
-      ++check.body;
-    }
+namespace {
+
+// Adds `p` (VerificationScene::points' frame) to `beside` in the box's frame when it lies in reach
+// of the run-on strips at a height they look at.
+void addBeside(const SceneBox& local, const Eigen::Vector3f& p, const OpenTopParams& params,
+               std::vector<Eigen::Vector3f>& beside) {
+  const Eigen::Vector3f q = local.boxFrame(p);
+  if (q.z() <= params.run_from || q.z() >= std::max(params.run_to, params.run_level_cap)) return;
+  if (std::abs(q.x()) < local.box.size.x() / 2 + params.run_far &&
+      std::abs(q.y()) < local.box.size.y() / 2 + params.run_far) {
+    beside.push_back(q);
   }
-  if (params.max_level > 0) {
-    check.level_share = levelShare(footprint, local.box.size.x(), local.box.size.y(), top - local.floor_z, params);
-  }
-  if (check.max_run_on > 0) check.run_on_share = runOnShare(beside, local.box.size.x(), local.box.size.y(), params);
-  return check;
 }
 
-float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, const OpenTopParams& params) {
+// Each of the four strips' share of cells filled by a point in the seat's band, and of cells whose
+// highest point below the cap lies within one level band up to run_level_to (runOnShare).
+struct StripShares {
+  std::array<float, 4> seat{}, level{};
+};
+
+StripShares stripShares(const std::vector<Eigen::Vector3f>& points, float width, float depth,
+                        const OpenTopParams& params) {
   const float cell = std::max(params.run_cell, 1e-3f);
   const int across = std::max(1, static_cast<int>((params.run_far - params.run_near) / cell));
   // Strips 0 and 1 lie beyond the ends of the width (x), 2 and 3 beyond those of the depth (y);
@@ -80,10 +62,10 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
       if (below_cap) highest[s][c] = std::max(highest[s][c], p.z());
     }
   }
-  float most = 0;
+  StripShares shares;
   for (int s = 0; s < 4; ++s) {
     const auto cells = static_cast<float>(filled[s].size());
-    most = std::max(most, static_cast<float>(std::count(filled[s].begin(), filled[s].end(), uint8_t{1})) / cells);
+    shares.seat[s] = static_cast<float>(std::count(filled[s].begin(), filled[s].end(), uint8_t{1})) / cells;
     if (!level) continue;
     std::vector<float> tops;  // the cells whose highest point is a surface up to run_level_to
     for (const float h : highest[s]) {
@@ -95,10 +77,80 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
       while (tops[hi] - tops[lo] >= params.level_band) ++lo;
       in_band = std::max(in_band, hi - lo + 1);
     }
-    most = std::max(most, static_cast<float>(in_band) / cells);
+    shares.level[s] = static_cast<float>(in_band) / cells;
   }
+  return shares;
+}
+
+}  // namespace
+
+OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params) {
+  OpenTopCheck check;
+  if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return check;
+  const SceneBox local = sceneBox(scene, hypothesis);
+  const float top = local.top();
+  check.looked = true;
+  check.max_share = params.max_share;
+  check.min_upper = params.min_upper;
+  check.max_level = params.max_level;
+  check.max_run_on = params.max_level > 0 ? params.max_run_on : 0.0f;
+  std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
+  for (const auto& p : scene.points) {
+    const float height = p.z() - local.floor_z;
+    const bool over = local.overFootprint(p);
+    if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
+    if (check.max_run_on > 0 && !over) addBeside(local, p, params, beside);
+    if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
+    // The inner part of the footprint lies within it (most of the scene is over neither).
+    if (!over && params.inner <= 1) continue;
+    if (!local.overFootprint(p, params.inner)) continue;
+    if (p.z() > top + params.from && p.z() < top + params.to) {
+      ++check.above;
+    } else if (p.z() > local.floor_z + params.body_from && p.z() < top) {
+      ++check.body;
+    }
+  }
+  if (params.max_level > 0) {
+    check.level_share = levelShare(footprint, local.box.size.x(), local.box.size.y(), top - local.floor_z, params);
+  }
+  if (check.max_run_on > 0) check.run_on_share = runOnShare(beside, local.box.size.x(), local.box.size.y(), params);
+  return check;
+}
+
+float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, const OpenTopParams& params) {
+  const StripShares shares = stripShares(points, width, depth, params);
+  float most = 0;
+  for (int s = 0; s < 4; ++s) most = std::max({most, shares.seat[s], shares.level[s]});
   return most;
 }
+
+int backSide(const TrainingObject& object, float yaw) {
+  Eigen::Vector2f back = Eigen::Vector2f::Zero();
+  for (const auto& q : object.surface) {
+    if (q.z() > 0.75f * object.size.z()) back += q.head<2>();
+  }
+  if (back.norm() < 1e-6f) return -1;
+  const float c = std::cos(yaw), s = std::sin(yaw);
+  const Eigen::Vector2f turned(c * back.x() - s * back.y(), s * back.x() + c * back.y());
+  if (std::abs(turned.x()) > std::abs(turned.y())) return turned.x() > 0 ? 0 : 1;
+  return turned.y() > 0 ? 2 : 3;
+}
+
+float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
+                      const OpenTopParams& params) {
+  if (!params.enabled || !params.behind_back || !hypothesis.upright_box || !hypothesis.verification) return 0;
+  const int object = hypothesis.verification->object;
+  if (object < 0 || static_cast<size_t>(object) >= category.objects.size()) return 0;
+  const SceneBox local = sceneBox(scene, hypothesis);
+  const int back = backSide(category.objects[static_cast<size_t>(object)], hypothesis.verification->yaw - local.box.yaw);
+  if (back < 0) return 0;
+  std::vector<Eigen::Vector3f> beside;
+  for (const auto& p : scene.points) {
+    if (!local.overFootprint(p)) addBeside(local, p, params, beside);
+  }
+  return stripShares(beside, local.box.size.x(), local.box.size.y(), params).level[static_cast<size_t>(back)];
+}
+
 
 float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,
                  const OpenTopParams& params) {

@@ -27,7 +27,9 @@
 // that object from the other categories' answers (a table on the same bed) and is then rejected:
 // the object gets no answer rather than the next category's, as an open-set recogniser answers
 // "unknown" when its best class is refuted (Scheirer et al., "Toward open set recognition",
-// TPAMI 2013).
+// TPAMI 2013). A chair on a bench at a bed's foot has the mattress behind its back: a chair stands
+// with a table before it, not behind it, so only the strip behind its fitted shape's back is looked
+// at there, and only for a level surface (levelBehindBack).
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/verification.h"
@@ -66,6 +68,12 @@ struct OpenTopParams {
   // run_level_to <= run_from: not looked at (docs/EVALUATION.md, "A tall bed's mattress").
   float run_level_to = 0.8f, run_level_cap = 1.0f;
   float max_run_on = 0.8f;
+  // For a category the level top does not look at (chairs): refuted when max_run_on of the cells
+  // of the strip behind its fitted shape's back hold their highest point level, as above. The
+  // seat's band is not counted there: chairs drawn up to each other fill it. On the dev scans the
+  // same strip on every side lost chairs at tables, whose tops stand at a mattress's height
+  // (docs/EVALUATION.md, "A tall bed's mattress beside a couch").
+  bool behind_back = true;
 };
 
 struct OpenTopCheck {
@@ -107,6 +115,18 @@ float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float 
 // cells' level highest points, whichever fills more: `points` are (x, y, height above the floor)
 // about the footprint's centre, along its sides.
 float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, const OpenTopParams& params = {});
+
+// The side of a box (0, 1: past +x, -x of its width; 2, 3: past +y, -y of its depth) that the
+// back of `object` faces, turned by `yaw` about up relative to the box: the side nearest the
+// direction from its axis to its surface in the top quarter of its height (a chair's backrest).
+// -1 when that surface lies on the axis.
+int backSide(const TrainingObject& object, float yaw);
+
+// The share of the cells of the strip behind a verified, upright hypothesis' back (backSide of its
+// fitted shape) whose highest point lies within one level band (runOnShare's level part); 0 where
+// not looked at (params.enabled or behind_back off, no fitted shape in `category`).
+float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
+                      const OpenTopParams& params = {});
 
 // Whether each of the category's training shapes is less level than params.max_level (couches,
 // whose back and arms rise over the seat; not chairs, whose seat covers most of the footprint);

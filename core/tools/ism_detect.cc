@@ -123,6 +123,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-level-run-on", no_level_run_on,
                "default preset: keep couches beside which the measured surface runs on level above a seat's height, "
                "up to a tall bed's mattress at 0.8 m, when none runs on at a seat's height");
+  bool no_behind_back = false;
+  app.add_flag("--no-behind-back", no_behind_back,
+               "default preset: keep chairs behind whose fitted back the measured surface runs on level, as a bed's "
+               "mattress behind the bench at its foot");
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -165,6 +169,7 @@ int main(int argc, char** argv) {
     if (no_upper_part) options.scene_checks.open_top.min_upper = 0;
     if (no_level_top) options.scene_checks.open_top.max_level = 0;
     if (no_level_run_on) options.scene_checks.open_top.run_level_to = 0;
+    if (no_behind_back) options.scene_checks.open_top.behind_back = false;
     options.scene_checks.bare_floor.enabled = !no_bare_floor;
     options.scene_checks.under_top.enabled = !no_under_top;
     options.scene_checks.seat_area.enabled = !no_seat_area;

@@ -146,6 +146,7 @@ int main(int argc, char** argv) {
   bool no_upper_part = false;
   bool no_level_top = false;
   bool no_level_run_on = false;
+  bool no_behind_back = false;
   bool no_bare_floor = false;
   bool no_under_top = false;
   bool no_seat_area = false;
@@ -170,6 +171,9 @@ int main(int argc, char** argv) {
     sub->add_flag("--no-level-run-on", no_level_run_on,
                   "default preset: keep couches beside which the measured surface runs on level above a seat's "
                   "height, up to a tall bed's mattress at 0.8 m, when none runs on at a seat's height (open_top.h)");
+    sub->add_flag("--no-behind-back", no_behind_back,
+                  "default preset: keep chairs behind whose fitted back the measured surface runs on level, as a "
+                  "bed's mattress behind the bench at its foot (open_top.h)");
     sub->add_flag("--no-bare-floor", no_bare_floor,
                   "default preset: keep hypotheses with bare floor in the middle of their footprint (bare_floor.h)");
     sub->add_flag("--no-under-top", no_under_top,
@@ -231,6 +235,7 @@ int main(int argc, char** argv) {
     recognition.upper_part = !no_upper_part;
     recognition.level_top = !no_level_top;
     recognition.level_run_on = !no_level_run_on;
+    recognition.behind_back = !no_behind_back;
     recognition.bare_floor = !no_bare_floor;
     recognition.under_top = !no_under_top;
     recognition.seat_area = !no_seat_area;

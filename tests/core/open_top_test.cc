@@ -1,6 +1,7 @@
 // An open top: a chair standing free, the same chair under a wall cabinet, and a coffee table.
 #include "core/recognition/open_top.h"
 
+#include <cmath>
 #include <limits>
 #include <vector>
 
@@ -198,6 +199,68 @@ TEST(OpenTop, ACouchBeforeATallBedsLevelMattressIsRefuted) {
   const OpenTopCheck seat = checkOpenTop(bed, verifiedCouchAt(0.0f), seat_band_only);
   EXPECT_LT(seat.run_on_share, 0.05f) << "no point at a seat's height past a side";
   EXPECT_FALSE(seat.refuted());
+}
+
+// A dining chair's training shape 0.5 m square: a seat at 0.45 m, its backrest along +y to 0.9 m.
+CategoryModel chairCategory() {
+  TrainingObject chair;
+  chair.size = {0.5f, 0.5f, 0.9f};
+  plate(chair.surface, -0.25f, 0.25f, -0.25f, 0.2f, 0.45f);
+  wall(chair.surface, -0.25f, 0.25f, 0.22f, 0.5f, 0.9f);
+  CategoryModel category;
+  category.objects = {chair};
+  return category;
+}
+
+TEST(OpenTop, TheBackSideIsWhereTheShapesTopQuarterLies) {
+  const TrainingObject chair = chairCategory().objects.front();
+  constexpr float kHalfTurn = 3.14159265f;
+  EXPECT_EQ(backSide(chair, 0.0f), 2) << "+y";
+  EXPECT_EQ(backSide(chair, kHalfTurn / 2), 1) << "+y turned a quarter to -x";
+  EXPECT_EQ(backSide(chair, kHalfTurn), 3);
+  EXPECT_EQ(backSide(chair, -kHalfTurn / 2), 0);
+  EXPECT_EQ(backSide(TrainingObject{}, 0.0f), -1) << "no surface";
+}
+
+// A chair answered on a bench at a bed's foot has the mattress, level at 0.72 m, behind its back:
+// refuted. Turned to face the bed, or drawn up to a table whose top (0.74 m) lies before it, the
+// strip behind its back is empty, though the table fills the strip before it.
+TEST(OpenTop, ALevelSurfaceBehindAChairsBackRefutesIt) {
+  const CategoryModel chairs = chairCategory();
+  VerificationScene bed;
+  bed.floor_z = 0.0f;
+  bed.map = true;
+  plate(bed.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
+  plate(bed.points, -0.6f, 0.6f, -0.25f, 0.25f, 0.5f);  // the bench
+  plate(bed.points, -1.0f, 1.0f, 0.3f, 2.3f, 0.72f);    // the mattress past +y
+  Hypothesis chair = chairAt(0.0f);
+  chair.verification->object = 0;
+  EXPECT_GT(levelBehindBack(bed, chair, chairs), 0.95f);
+  Hypothesis facing = chair;
+  facing.verification->yaw = 3.14159265f;  // its back to -y
+  EXPECT_LT(levelBehindBack(bed, facing, chairs), 0.05f);
+
+  VerificationScene dining;
+  dining.floor_z = 0.0f;
+  dining.map = true;
+  plate(dining.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
+  plate(dining.points, -0.8f, 0.8f, -1.25f, -0.3f, 0.74f);  // the table's top before it
+  plate(dining.points, -0.25f, 0.25f, -0.25f, 0.2f, 0.45f);  // the chair
+  wall(dining.points, -0.25f, 0.25f, 0.22f, 0.5f, 0.9f);
+  EXPECT_LT(levelBehindBack(dining, chair, chairs), 0.05f);
+  OpenTopParams level_only;
+  level_only.run_to = level_only.run_from;
+  std::vector<Eigen::Vector3f> beside;
+  for (const auto& p : dining.points) {
+    if (std::abs(p.x()) > 0.25f || std::abs(p.y()) > 0.25f) beside.push_back(p);
+  }
+  EXPECT_GT(runOnShare(beside, 0.5f, 0.5f, level_only), 0.8f) << "the table's top fills the strip before it";
+
+  // Not looked at: no fitted shape, switched off.
+  EXPECT_EQ(levelBehindBack(bed, chairAt(0.0f), chairs), 0.0f);
+  OpenTopParams off;
+  off.behind_back = false;
+  EXPECT_EQ(levelBehindBack(bed, chair, chairs, off), 0.0f);
 }
 
 // The level part counts the cells whose highest point below the cap lies in one band: two levels

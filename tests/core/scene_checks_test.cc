@@ -91,5 +91,40 @@ TEST(SceneChecks, ATableIsItsTop) {
   EXPECT_EQ(SceneChecks(model, tables, keep)(view, kept, up), SceneVerdict::kKept);
 }
 
+// A dining chair 0.5 x 0.5 x 0.9 m as a training shape: its seat at 0.45 m down to the floor in
+// front, its backrest along +y to 0.9 m.
+TrainingObject chairShape() {
+  TrainingObject chair;
+  chair.size = {0.5f, 0.5f, 0.9f};
+  plate(chair.surface, -0.25f, 0.25f, -0.25f, 0.2f, 0.45f);
+  wall(chair.surface, -0.25f, 0.25f, -0.25f, 0.0f, 0.45f);
+  wall(chair.surface, -0.25f, 0.25f, 0.22f, 0.0f, 0.9f);
+  return chair;
+}
+
+// A bench at a bed's foot, its seat at 0.5 m, the mattress level at 0.72 m behind it from y = 0.3 m:
+// a chair answered on the bench, its back to the bed, is refuted by the strip behind its back. The
+// calibration does not look at the run-on strips (max_run_on 0), and keeps it.
+TEST(SceneChecks, AChairWithABedsMattressBehindItsBackIsRefuted) {
+  VerificationScene view;
+  view.floor_z = 0.0f;
+  view.map = true;
+  plate(view.points, -3.0f, 3.0f, -3.0f, 3.0f, 0.0f);
+  plate(view.points, -0.6f, 0.6f, -0.25f, 0.25f, 0.5f);  // the bench
+  wall(view.points, -0.6f, 0.6f, -0.25f, 0.0f, 0.5f);
+  plate(view.points, -1.0f, 1.0f, 0.3f, 2.3f, 0.72f);    // the mattress
+  wall(view.points, -1.0f, 1.0f, 0.3f, 0.0f, 0.72f);
+  const Model model;
+  const CategoryModel chairs = category("dining_chair", chairShape());
+  const Eigen::Matrix3f up = Eigen::Matrix3f::Identity();
+  Hypothesis chair = testing::verifiedStandingAt("dining_chair", {0.5f, 0.5f, 0.9f}, 0.0f, 0.1f);
+  chair.verification->object = 0;
+  Hypothesis calibrated = chair;
+  EXPECT_EQ(SceneChecks(model, chairs, SceneCheckParams{})(view, chair, up), SceneVerdict::kRefuted);
+  SceneCheckParams calibration;
+  calibration.open_top.max_run_on = 0;
+  EXPECT_EQ(SceneChecks(model, chairs, calibration)(view, calibrated, up), SceneVerdict::kKept);
+}
+
 }  // namespace
 }  // namespace ism
