@@ -68,11 +68,12 @@ struct OpenTopParams {
   // run_level_to <= run_from: not looked at (docs/EVALUATION.md, "A tall bed's mattress").
   float run_level_to = 0.8f, run_level_cap = 1.0f;
   float max_run_on = 0.8f;
-  // For a category the level top does not look at (chairs): refuted when max_run_on of the cells
-  // of the strip behind its fitted shape's back hold their highest point level, as above. The
-  // seat's band is not counted there: chairs drawn up to each other fill it. On the dev scans the
-  // same strip on every side lost chairs at tables, whose tops stand at a mattress's height
-  // (docs/EVALUATION.md, "A tall bed's mattress beside a couch").
+  // A chair or a couch is also refuted when max_run_on of the cells of the strip behind its fitted
+  // shape's back hold their highest point level, as above (a couch's strips on every side count
+  // that already, with the level top). The seat's band is not counted there: chairs drawn up to
+  // each other fill it. On the dev scans the level strips on every side lost chairs at tables,
+  // whose tops stand at a mattress's height (docs/EVALUATION.md, "A tall bed's mattress beside a
+  // couch").
   bool behind_back = true;
 };
 

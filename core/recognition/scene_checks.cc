@@ -40,8 +40,9 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
   if (top.contradicted() || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
     return SceneVerdict::kRejected;
   }
-  // The level top looks at couches; behind a chair's back, only a level surface (open_top.h).
-  const bool behind_back = params_.open_top.max_level <= 0 && params_.open_top.max_run_on > 0 &&
+  // Behind a chair's or a couch's back, a level surface (a couch's strips on every side count it
+  // already, with the level top).
+  const bool behind_back = params_.open_top.max_run_on > 0 &&
                            levelBehindBack(scene, h, category_, params_.open_top) >= params_.open_top.max_run_on;
   return top.refuted() || behind_back ? SceneVerdict::kRefuted : SceneVerdict::kKept;
 }
