@@ -84,7 +84,8 @@ StripShares stripShares(const std::vector<Eigen::Vector3f>& points, float width,
 
 }  // namespace
 
-OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params) {
+OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params,
+                          const TrainingObject* fitted) {
   OpenTopCheck check;
   if (!params.enabled || !hypothesis.upright_box || !hypothesis.verification) return check;
   const SceneBox local = sceneBox(scene, hypothesis);
@@ -94,12 +95,16 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   check.min_upper = params.min_upper;
   check.max_level = params.max_level;
   check.max_run_on = params.max_level > 0 ? params.max_run_on : 0.0f;
+  const int back = fitted && params.behind_back && params.max_run_on > 0
+                       ? backSide(*fitted, hypothesis.verification->yaw - local.box.yaw)
+                       : -1;
+  if (back >= 0) check.max_behind = params.max_run_on;
   std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
     const bool over = local.overFootprint(p);
     if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
-    if (check.max_run_on > 0 && !over) addBeside(local, p, params, beside);
+    if ((check.max_run_on > 0 || back >= 0) && !over) addBeside(local, p, params, beside);
     if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
     // The inner part of the footprint lies within it (most of the scene is over neither).
     if (!over && params.inner <= 1) continue;
@@ -113,7 +118,13 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   if (params.max_level > 0) {
     check.level_share = levelShare(footprint, local.box.size.x(), local.box.size.y(), top - local.floor_z, params);
   }
-  if (check.max_run_on > 0) check.run_on_share = runOnShare(beside, local.box.size.x(), local.box.size.y(), params);
+  if (check.max_run_on > 0 || back >= 0) {
+    const StripShares shares = stripShares(beside, local.box.size.x(), local.box.size.y(), params);
+    for (int s = 0; s < 4 && check.max_run_on > 0; ++s) {
+      check.run_on_share = std::max({check.run_on_share, shares.seat[s], shares.level[s]});
+    }
+    if (back >= 0) check.behind_back_share = shares.level[static_cast<size_t>(back)];
+  }
   return check;
 }
 
@@ -138,19 +149,11 @@ int backSide(const TrainingObject& object, float yaw) {
 
 float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
                       const OpenTopParams& params) {
-  if (!params.enabled || !params.behind_back || !hypothesis.upright_box || !hypothesis.verification) return 0;
+  if (!hypothesis.verification) return 0;
   const int object = hypothesis.verification->object;
   if (object < 0 || static_cast<size_t>(object) >= category.objects.size()) return 0;
-  const SceneBox local = sceneBox(scene, hypothesis);
-  const int back = backSide(category.objects[static_cast<size_t>(object)], hypothesis.verification->yaw - local.box.yaw);
-  if (back < 0) return 0;
-  std::vector<Eigen::Vector3f> beside;
-  for (const auto& p : scene.points) {
-    if (!local.overFootprint(p)) addBeside(local, p, params, beside);
-  }
-  return stripShares(beside, local.box.size.x(), local.box.size.y(), params).level[static_cast<size_t>(back)];
+  return checkOpenTop(scene, hypothesis, params, &category.objects[static_cast<size_t>(object)]).behind_back_share;
 }
-
 
 float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,
                  const OpenTopParams& params) {

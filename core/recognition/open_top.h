@@ -29,7 +29,7 @@
 // "unknown" when its best class is refuted (Scheirer et al., "Toward open set recognition",
 // TPAMI 2013). A chair on a bench at a bed's foot has the mattress behind its back: a chair stands
 // with a table before it, not behind it, so only the strip behind its fitted shape's back is looked
-// at there, and only for a level surface (levelBehindBack).
+// at there, and only for a level surface (OpenTopCheck::behindBack).
 #include "core/model/model.h"
 #include "core/recognition/hypothesis.h"
 #include "core/recognition/verification.h"
@@ -87,6 +87,8 @@ struct OpenTopCheck {
   float max_level = 0;    // OpenTopParams::max_level
   float run_on_share = 0;  // the most filled strip's share of filled cells
   float max_run_on = 0;    // OpenTopParams::max_run_on, 0 where the level top is not looked at
+  float behind_back_share = 0;  // the strip behind the fitted shape's back: its share of level cells
+  float max_behind = 0;         // OpenTopParams::max_run_on, 0 where it is not looked at
   float share() const { return above + body > 0 ? static_cast<float>(above) / static_cast<float>(above + body) : 0.0f; }
   bool covered() const { return looked && share() > max_share; }
   bool topless() const { return looked && upper < min_upper; }
@@ -94,11 +96,16 @@ struct OpenTopCheck {
   bool level() const { return looked && max_level > 0 && level_share >= max_level; }
   // A level surface at a seat's height runs on past a side: refuted too.
   bool runsOn() const { return looked && max_run_on > 0 && run_on_share >= max_run_on; }
-  bool refuted() const { return level() || runsOn(); }
+  // A level surface behind the back: refuted too.
+  bool behindBack() const { return looked && max_behind > 0 && behind_back_share >= max_behind; }
+  bool refuted() const { return level() || runsOn() || behindBack(); }
   bool contradicted() const { return covered() || topless(); }
 };
 
-OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params = {});
+// `fitted`: the training shape verification fitted (Verification::object), whose back the strip
+// behind the back is looked behind; null, not looked at.
+OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params = {},
+                          const TrainingObject* fitted = nullptr);
 
 // Whether each of the category's training shapes (standing on z = 0) has at least params.min_upper
 // points in the band of the top of the body; false without shapes or with min_upper 0.
@@ -124,8 +131,8 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
 int backSide(const TrainingObject& object, float yaw);
 
 // The share of the cells of the strip behind a verified, upright hypothesis' back (backSide of its
-// fitted shape) whose highest point lies within one level band (runOnShare's level part); 0 where
-// not looked at (params.enabled or behind_back off, no fitted shape in `category`).
+// fitted shape in `category`) whose highest point lies within one level band (runOnShare's level
+// part); 0 where not looked at (params.enabled or behind_back off, max_run_on 0, no fitted shape).
 float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
                       const OpenTopParams& params = {});
 

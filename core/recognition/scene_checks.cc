@@ -36,15 +36,14 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
       checkSeatArea(scene, h, seat_area_, params_.seat_area).bare()) {
     return SceneVerdict::kRejected;
   }
-  const OpenTopCheck top = checkOpenTop(scene, h, params_.open_top);
+  const int object = h.verification ? h.verification->object : -1;
+  const TrainingObject* fitted =
+      object >= 0 && static_cast<size_t>(object) < category_.objects.size() ? &category_.objects[static_cast<size_t>(object)] : nullptr;
+  const OpenTopCheck top = checkOpenTop(scene, h, params_.open_top, fitted);
   if (top.contradicted() || checkBareFloor(scene, h, covering_, params_.bare_floor).bareFloor()) {
     return SceneVerdict::kRejected;
   }
-  // Behind a chair's or a couch's back, a level surface (a couch's strips on every side count it
-  // already, with the level top).
-  const bool behind_back = params_.open_top.max_run_on > 0 &&
-                           levelBehindBack(scene, h, category_, params_.open_top) >= params_.open_top.max_run_on;
-  return top.refuted() || behind_back ? SceneVerdict::kRefuted : SceneVerdict::kKept;
+  return top.refuted() ? SceneVerdict::kRefuted : SceneVerdict::kKept;
 }
 
 }  // namespace ism
