@@ -39,25 +39,11 @@ struct EvalRecognition {
   bool verify = true;  // default preset, where the scene is at hand
   bool shared_surface = true;  // SuppressionParams::shared_surface
   bool maps_in_3d = true;      // VerificationParams::maps_in_3d
-  bool top_extent = true;      // TopExtentParams::enabled
-  bool footprint_prior = true; // TopExtentParams::footprint_prior
   int icp_iterations = 0;      // VerificationParams::icp_iterations
   FitTerms fit_terms = FitTerms::kBoth;  // VerificationParams::fit_terms
-  bool require_top = true;     // TopExtentParams::require_top
-  bool seat_run = true;        // SeatRunParams::enabled
-  bool open_top = true;        // OpenTopParams::enabled
-  bool upper_part = true;      // OpenTopParams::min_upper above 0
-  bool level_top = true;       // OpenTopParams::max_level above 0
-  bool level_run_on = true;    // OpenTopParams::run_level_to above run_from
-  bool behind_back = true;     // OpenTopParams::behind_back
-  bool bare_floor = true;      // BareFloorParams::enabled
-  bool under_top = true;       // UnderTopParams::enabled
-  bool seat_area = true;       // SeatAreaParams::enabled
   bool merge_support = true;   // SuppressionParams::merge_support
-  bool hidden_top = true;      // TopExtentParams::max_hidden_run above 0
   bool top_support = true;     // SuppressionParams::top_support
-  bool seat_under_top = true;  // SeatUnderTopParams::enabled
-  bool top_height = true;      // TopExtentParams::height_slack above 0
+  SceneCheckParams scene_checks;  // RecognitionOptions::scene_checks
 };
 
 // recognizeFeatures() with the model's thresholds for the strategy. Seed preset: every peak above

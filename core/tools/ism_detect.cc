@@ -11,8 +11,8 @@
 #include "core/io/cloud_io.h"
 #include "core/model/model_file.h"
 #include "core/recognition/recognizer.h"
-#include "core/recognition/recognizer.h"
 #include "core/report/report.h"
+#include "core/tools/scene_check_flags.h"
 
 namespace {
 
@@ -73,60 +73,8 @@ int main(int argc, char** argv) {
                  "search; 0 keeps the search's pose")
       ->check(CLI::Range(0, 100))
       ->capture_default_str();
-  bool no_top_extent = false;
-  app.add_flag("--no-top-extent", no_top_extent,
-               "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top");
-  bool no_seat_run = false;
-  app.add_flag("--no-seat-run", no_seat_run,
-               "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far "
-               "as their category's shortest training shape's");
-  bool no_top_height = false;
-  app.add_flag("--no-top-height", no_top_height,
-               "default preset: keep tables whose measured top is more than 0.1 m lower or higher than every training "
-               "table's");
-  bool no_seat_under_top = false;
-  app.add_flag("--no-seat-under-top", no_seat_under_top,
-               "default preset: keep a couch of which a table's box covers a third of the footprint, and the less "
-               "confident table too");
-  bool no_open_top = false;
-  app.add_flag("--no-open-top", no_open_top,
-               "default preset: keep chairs and couches with measured surface standing over their top, or none in the "
-               "top of their body");
-  bool no_upper_part = false;
-  app.add_flag("--no-upper-part", no_upper_part,
-               "default preset: keep chairs and couches with no measured surface in the top of their body, where a "
-               "backrest is");
-  bool no_bare_floor = false;
-  app.add_flag("--no-bare-floor", no_bare_floor,
-               "default preset: keep hypotheses with bare floor in the middle of their footprint");
-  bool no_footprint_prior = false;
-  app.add_flag("--no-footprint-prior", no_footprint_prior,
-               "default preset: keep tables whose measured top is deeper or shallower than every training table's "
-               "of given size");
-  bool no_hidden_top = false;
-  app.add_flag("--no-hidden-top", no_hidden_top,
-               "default preset: a table's box spans only the top measured in one piece, not across the swaths "
-               "something in front hides from the sensor");
-  bool no_under_top = false;
-  app.add_flag("--no-under-top", no_under_top,
-               "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
-               "cabinet's");
-  bool no_seat_area = false;
-  app.add_flag("--no-seat-area", no_seat_area,
-               "default preset: keep chairs and couches with little measured at seat height over their footprint, "
-               "as over a desk's legs");
-  bool no_level_top = false;
-  app.add_flag("--no-level-top", no_level_top,
-               "default preset: keep couches over whose footprint the measured surface is one level, or beside "
-               "which it runs on at a seat's height, as a bed's mattress does");
-  bool no_level_run_on = false;
-  app.add_flag("--no-level-run-on", no_level_run_on,
-               "default preset: keep couches beside which the measured surface runs on level above a seat's height, "
-               "up to a tall bed's mattress at 0.8 m, when none runs on at a seat's height");
-  bool no_behind_back = false;
-  app.add_flag("--no-behind-back", no_behind_back,
-               "default preset: keep chairs behind whose fitted back the measured surface runs on level, as a bed's "
-               "mattress behind the bench at its foot");
+  ism::cli::SceneCheckFlags scene_check_flags;
+  scene_check_flags.add(app);
   try {
     app.parse(argc, argv);
     if (files.size() > 1 && (!picture.empty() || !debug_ply.empty())) {
@@ -161,20 +109,7 @@ int main(int argc, char** argv) {
     }
     options.box_selection = !no_box_selection;
     options.verify = !no_verify;
-    options.scene_checks.top_extent.enabled = !no_top_extent;
-    options.scene_checks.top_extent.footprint_prior = !no_footprint_prior;
-    if (no_hidden_top) options.scene_checks.top_extent.max_hidden_run = 0;
-    options.scene_checks.seat_run.enabled = !no_seat_run;
-    options.scene_checks.open_top.enabled = !no_open_top;
-    if (no_upper_part) options.scene_checks.open_top.min_upper = 0;
-    if (no_level_top) options.scene_checks.open_top.max_level = 0;
-    if (no_level_run_on) options.scene_checks.open_top.run_level_to = 0;
-    if (no_behind_back) options.scene_checks.open_top.behind_back = false;
-    options.scene_checks.bare_floor.enabled = !no_bare_floor;
-    options.scene_checks.under_top.enabled = !no_under_top;
-    options.scene_checks.seat_area.enabled = !no_seat_area;
-    options.scene_checks.seat_under_top.enabled = !no_seat_under_top;
-    if (no_top_height) options.scene_checks.top_extent.height_slack = 0;
+    scene_check_flags.apply(options.scene_checks);
     options.keep_votes = !debug_ply.empty();
     std::vector<ism::Model> loaded;
     for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));

@@ -11,6 +11,7 @@
 #include "core/common/error.h"
 #include "core/eval/eval.h"
 #include "core/model/model_file.h"
+#include "core/tools/scene_check_flags.h"
 
 namespace {
 
@@ -137,67 +138,8 @@ int main(int argc, char** argv) {
                    "inliers), as the model was trained with (ism-train --fit-terms; verification.h)")
       ->transform(CLI::CheckedTransformer(fit_term_names))
       ->default_str("both");
-  bool no_top_extent = false;
-  bool no_footprint_prior = false;
-  bool no_hidden_top = false;
-  bool keep_topless = false;
-  bool no_seat_run = false;
-  bool no_open_top = false;
-  bool no_upper_part = false;
-  bool no_level_top = false;
-  bool no_level_run_on = false;
-  bool no_behind_back = false;
-  bool no_bare_floor = false;
-  bool no_under_top = false;
-  bool no_seat_area = false;
-  bool no_seat_under_top = false;
-  bool no_top_height = false;
-  for (CLI::App* sub : {baseline, real}) {
-    sub->add_flag("--no-top-height", no_top_height,
-                  "default preset: keep tables whose measured top is more than 0.1 m lower or higher than every "
-                  "training table's (top_extent.h)");
-    sub->add_flag("--no-seat-under-top", no_seat_under_top,
-                  "default preset: keep a couch of which a table's box covers a third of the footprint, and the less "
-                  "confident table too (seat_under_top.h)");
-    sub->add_flag("--no-open-top", no_open_top,
-                  "default preset: keep chairs and couches with measured surface standing over their top, or none in "
-                  "the top of their body (open_top.h)");
-    sub->add_flag("--no-upper-part", no_upper_part,
-                  "default preset: keep chairs and couches with no measured surface in the top of their body, where a "
-                  "backrest is (open_top.h)");
-    sub->add_flag("--no-level-top", no_level_top,
-                  "default preset: keep couches over whose footprint the measured surface is one level, or beside "
-                  "which it runs on at a seat's height, as a bed's mattress does (open_top.h)");
-    sub->add_flag("--no-level-run-on", no_level_run_on,
-                  "default preset: keep couches beside which the measured surface runs on level above a seat's "
-                  "height, up to a tall bed's mattress at 0.8 m, when none runs on at a seat's height (open_top.h)");
-    sub->add_flag("--no-behind-back", no_behind_back,
-                  "default preset: keep chairs behind whose fitted back the measured surface runs on level, as a "
-                  "bed's mattress behind the bench at its foot (open_top.h)");
-    sub->add_flag("--no-bare-floor", no_bare_floor,
-                  "default preset: keep hypotheses with bare floor in the middle of their footprint (bare_floor.h)");
-    sub->add_flag("--no-under-top", no_under_top,
-                  "default preset: keep tables under whose measured top nothing is measured, as under a bed's or a "
-                  "cabinet's (under_top.h)");
-    sub->add_flag("--no-seat-area", no_seat_area,
-                  "default preset: keep chairs and couches with little measured at seat height over their footprint, "
-                  "as over a desk's legs (seat_area.h)");
-    sub->add_flag("--no-seat-run", no_seat_run,
-                  "default preset: keep chairs and couches whose measured surface at seat height runs less than half as far as "
-                  "their category's shortest training shape's (seat_run.h)");
-    sub->add_flag("--keep-topless", keep_topless,
-                  "default preset: keep tables whose top the scene does not show, with their fitted shapes' boxes "
-                  "(top_extent.h)");
-    sub->add_flag("--no-top-extent", no_top_extent,
-                  "default preset: tables' boxes stay their fitted shapes' instead of spanning the scene's table top "
-                  "(top_extent.h)");
-    sub->add_flag("--no-footprint-prior", no_footprint_prior,
-                  "default preset: keep tables whose measured top is deeper or shallower than every training table's "
-                  "of given size (top_extent.h)");
-    sub->add_flag("--no-hidden-top", no_hidden_top,
-                  "default preset: a table's box spans only the top measured in one piece, not across the swaths "
-                  "something in front hides from the sensor (top_extent.h)");
-  }
+  ism::cli::SceneCheckFlags scene_check_flags;
+  for (CLI::App* sub : {baseline, real}) scene_check_flags.add(*sub);
   std::string preset = "default";
   float min_confidence = ism::RecognitionOptions{}.min_confidence;
   for (CLI::App* sub : {baseline, real}) {
@@ -225,25 +167,11 @@ int main(int argc, char** argv) {
     recognition.verify = !no_verify;
     recognition.shared_surface = !centre_suppression;
     recognition.maps_in_3d = map_verification == "3d";
-    recognition.top_extent = !no_top_extent;
-    recognition.footprint_prior = !no_footprint_prior;
     recognition.icp_iterations = icp_iterations;
     recognition.fit_terms = fit_terms;
-    recognition.require_top = !keep_topless;
-    recognition.seat_run = !no_seat_run;
-    recognition.open_top = !no_open_top;
-    recognition.upper_part = !no_upper_part;
-    recognition.level_top = !no_level_top;
-    recognition.level_run_on = !no_level_run_on;
-    recognition.behind_back = !no_behind_back;
-    recognition.bare_floor = !no_bare_floor;
-    recognition.under_top = !no_under_top;
-    recognition.seat_area = !no_seat_area;
     recognition.merge_support = !own_peak_support;
-    recognition.hidden_top = !no_hidden_top;
     recognition.top_support = !own_peak_support && !merged_top_support;
-    recognition.seat_under_top = !no_seat_under_top;
-    recognition.top_height = !no_top_height;
+    scene_check_flags.apply(recognition.scene_checks);
     std::string text, json;
     if (baseline->parsed()) {
       if (manifest.empty() && folders.empty() && train_list.empty()) {

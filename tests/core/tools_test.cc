@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "core/io/file_bytes.h"
+#include "core/tools/scene_check_flags.h"
 
 extern char** environ;
 
@@ -178,6 +179,34 @@ TEST_F(Tools, DetectOptionsShapeTheAnswers) {
   EXPECT_EQ(answers({"--max", "1"}).size(), 1u);
   const auto strict = answers({}, "0.99");
   EXPECT_LT(strict.size(), all.size());
+}
+
+// The scene checks' switches come from one table (core/tools/scene_check_flags.h): each switches
+// off what it names and nothing else, and ism-detect and both ism-eval subcommands offer all of them.
+TEST_F(Tools, EverySceneCheckSwitchTurnsOffItsCheckInEveryTool) {
+  CLI::App app;
+  ism::cli::SceneCheckFlags flags;
+  flags.add(app);
+  std::vector<std::string> args = {"--keep-topless", "--no-behind-back"};  // CLI11 parses a reversed vector
+  app.parse(args);
+  ism::SceneCheckParams params;
+  flags.apply(params);
+  EXPECT_FALSE(params.open_top.behind_back);
+  EXPECT_FALSE(params.top_extent.require_top);
+  const ism::SceneCheckParams defaults;
+  EXPECT_TRUE(params.open_top.enabled);
+  EXPECT_EQ(params.open_top.run_level_to, defaults.open_top.run_level_to);
+  EXPECT_EQ(params.top_extent.max_hidden_run, defaults.top_extent.max_hidden_run);
+  EXPECT_TRUE(params.seat_under_top.enabled);
+
+  const Outcome detect = run("ism-detect", {"--help"});
+  const Outcome real = run("ism-eval", {"real", "--help"});
+  const Outcome baseline = run("ism-eval", {"baseline", "--help"});
+  for (const auto& s : ism::cli::kSceneCheckSwitches) {
+    for (const Outcome* help : {&detect, &real, &baseline}) {
+      EXPECT_NE(help->out.find(std::string(s.flag) + " "), std::string::npos) << s.flag << " missing from:\n" << help->out;
+    }
+  }
 }
 
 // The demo's scene (models/sample: a table, a chair drawn up to it, a couch, rendered from meshes
