@@ -16,7 +16,7 @@ struct SceneCheckSwitch {
   void (*off)(SceneCheckParams&);
 };
 
-inline constexpr std::array<SceneCheckSwitch, 15> kSceneCheckSwitches{{
+inline constexpr std::array<SceneCheckSwitch, 16> kSceneCheckSwitches{{
     {"--no-top-height",
      "keep tables whose measured top is more than 0.1 m lower or higher than every training table's (top_extent.h)",
      [](SceneCheckParams& p) { p.top_extent.height_slack = 0; }},
@@ -43,6 +43,10 @@ inline constexpr std::array<SceneCheckSwitch, 15> kSceneCheckSwitches{{
      "keep chairs behind whose fitted back the measured surface runs on level, as a bed's mattress behind the bench "
      "at its foot (open_top.h)",
      [](SceneCheckParams& p) { p.open_top.behind_back = false; }},
+    {"--no-near-side",
+     "keep chairs and couches of a single view with measured surface standing over the side of their footprint "
+     "that faces the sensor, as a wall between the sensor and them (open_top.h)",
+     [](SceneCheckParams& p) { p.open_top.near_edge = 0; }},
     {"--no-bare-floor", "keep hypotheses with bare floor in the middle of their footprint (bare_floor.h)",
      [](SceneCheckParams& p) { p.bare_floor.enabled = false; }},
     {"--no-under-top",

@@ -201,6 +201,46 @@ TEST(OpenTop, ACouchBeforeATallBedsLevelMattressIsRefuted) {
   EXPECT_FALSE(seat.refuted());
 }
 
+// A single view from the origin. Voting put a couch behind a bare wall 2 m ahead, whose face fits a
+// couch's back: the wall rises over the side of the box facing the sensor, so the box lies where
+// the sensor cannot have seen a couch. A couch before that wall, its back against it, keeps the wall
+// over its far side, and a couch seen from behind has nothing over its back.
+TEST(OpenTop, ACouchBehindAWallBeforeTheSensorIsContradicted) {
+  VerificationScene view;  // the sensor at the origin
+  view.floor_z = 0.0f;
+  plate(view.points, -3.0f, 3.0f, 0.5f, 2.0f, 0.0f);
+  wall(view.points, -3.0f, 3.0f, 2.0f, 0.0f, 2.4f);
+  const OpenTopCheck behind = checkOpenTop(view, verifiedCouchAt(2.4f));  // y 1.95-2.85
+  EXPECT_GT(behind.near_above, 0);
+  EXPECT_GT(behind.nearShare(), 0.3f);
+  EXPECT_TRUE(behind.hidden());
+  EXPECT_TRUE(behind.contradicted());
+  EXPECT_FALSE(behind.covered()) << "the inner part holds no point";
+
+  VerificationScene before = view;
+  testing::couchTop(before.points, 1.55f);  // its back at y 1.75-2.0, against the wall
+  const OpenTopCheck front = checkOpenTop(before, verifiedCouchAt(1.55f));
+  EXPECT_EQ(front.near_above, 0);
+  EXPECT_FALSE(front.contradicted());
+
+  VerificationScene away;
+  away.floor_z = 0.0f;
+  plate(away.points, -3.0f, 3.0f, -4.0f, -0.5f, 0.0f);
+  testing::couchTop(away.points, -2.4f);  // its back at y -2.2 to -1.95, facing the sensor
+  wall(away.points, -1.0f, 1.0f, -1.97f, 0.1f, 0.8f);  // the back's face
+  const OpenTopCheck from_behind = checkOpenTop(away, verifiedCouchAt(-2.4f));
+  EXPECT_GT(from_behind.near_body, 0) << "its back";
+  EXPECT_FALSE(from_behind.hidden());
+
+  // Not looked at: in a map, whose viewpoint is made up, or switched off.
+  VerificationScene map = view;
+  map.map = true;
+  EXPECT_FALSE(checkOpenTop(map, verifiedCouchAt(2.4f)).hidden());
+  OpenTopParams off;
+  off.near_edge = 0;
+  EXPECT_FALSE(checkOpenTop(view, verifiedCouchAt(2.4f), off).hidden());
+}
+
 // A dining chair's training shape 0.5 m square: a seat at 0.45 m, its backrest along +y to 0.9 m.
 CategoryModel chairCategory() {
   TrainingObject chair;
