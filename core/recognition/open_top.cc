@@ -99,27 +99,15 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
                        ? backSide(*fitted, hypothesis.verification->yaw - local.box.yaw)
                        : -1;
   if (back >= 0) check.max_behind = params.max_run_on;
-  // The side facing the sensor (the origin of VerificationScene::points), as backSide numbers them:
-  // the one the sensor lies farthest beyond.
-  int near = -1;
-  if (params.near_edge > 0 && !scene.map) {
-    const Eigen::Vector3f sensor = local.boxFrame(Eigen::Vector3f::Zero());
-    const float beyond_x = std::abs(sensor.x()) - local.box.size.x() / 2;
-    const float beyond_y = std::abs(sensor.y()) - local.box.size.y() / 2;
-    if (beyond_x > 0 || beyond_y > 0) {
-      near = beyond_x > beyond_y ? (sensor.x() > 0 ? 0 : 1) : (sensor.y() > 0 ? 2 : 3);
-    }
-  }
-  const float half[2] = {local.box.size.x() / 2, local.box.size.y() / 2};
+  const int near = params.near_edge > 0 ? sensorSide(scene, local) : -1;
   std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
     const bool over = local.overFootprint(p);
     if (near >= 0 && over) {
       const Eigen::Vector3f q = local.boxFrame(p);
-      const int axis = near / 2;
-      const float in = half[axis] - (near % 2 == 0 ? 1.0f : -1.0f) * q[axis];  // from the side inwards
-      if (in < params.near_edge && std::abs(q[1 - axis]) < params.inner * half[1 - axis]) {
+      const float along = params.inner * local.box.size[1 - near / 2] / 2;
+      if (local.inFrom(near, q) < params.near_edge && local.alongSide(near, q) < along) {
         if (p.z() > top + params.from && p.z() < top + params.to) {
           ++check.near_above;
         } else if (height > params.body_from && p.z() < top) {

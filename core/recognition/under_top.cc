@@ -27,10 +27,13 @@ UnderTopCheck checkUnderTop(const VerificationScene& scene, const Hypothesis& hy
   check.looked = true;
   check.min_open = params.min_open;
   const float top = local.top() - local.floor_z;
+  const int near = params.near_edge > 0 ? sensorSide(scene, local) : -1;
   std::vector<Eigen::Vector3f> under;  // only what can count: below the top, in the box's frame
   for (const auto& p : scene.points) {
     const Eigen::Vector3f q = local.boxFrame(p);
-    if (q.z() <= top - params.below) under.push_back(q);
+    if (q.z() > top - params.below) continue;
+    if (near >= 0 && local.inFrom(near, q) < params.near_edge) continue;  // a closed front
+    under.push_back(q);
   }
   check.open = openUnderShare(under, local.box.size.x(), local.box.size.y(), top, params);
   return check;

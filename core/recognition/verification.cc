@@ -364,6 +364,15 @@ SceneBox sceneBox(const VerificationScene& scene, const Hypothesis& hypothesis) 
   return local;
 }
 
+int sensorSide(const VerificationScene& scene, const SceneBox& local) {
+  if (scene.map) return -1;
+  const Eigen::Vector3f sensor = local.boxFrame(Eigen::Vector3f::Zero());  // the points' origin
+  const float beyond_x = std::abs(sensor.x()) - local.box.size.x() / 2;
+  const float beyond_y = std::abs(sensor.y()) - local.box.size.y() / 2;
+  if (beyond_x <= 0 && beyond_y <= 0) return -1;
+  return beyond_x > beyond_y ? (sensor.x() > 0 ? 0 : 1) : (sensor.y() > 0 ? 2 : 3);
+}
+
 VerificationScene makeVerificationScene(const Scene& scene, const std::optional<Gravity>& gravity,
                                         const VerificationParams& params) {
   VerificationScene out;

@@ -161,9 +161,21 @@ struct SceneBox {
     const Eigen::Vector3f q = boxFrame(p);
     return std::abs(q.x()) <= share * box.size.x() / 2 && std::abs(q.y()) <= share * box.size.y() / 2;
   }
+  // How far `q` (boxFrame) lies in from `side` of the footprint (0, 1: its +x, -x end of the
+  // width; 2, 3: its +y, -y end of the depth), and how far from the middle along that side.
+  float inFrom(int side, const Eigen::Vector3f& q) const {
+    const int axis = side / 2;
+    return box.size[axis] / 2 - (side % 2 == 0 ? q[axis] : -q[axis]);
+  }
+  float alongSide(int side, const Eigen::Vector3f& q) const { return std::abs(q[1 - side / 2]); }
 };
 
 SceneBox sceneBox(const VerificationScene& scene, const Hypothesis& hypothesis);
+
+// The side of the footprint (numbered as SceneBox::inFrom) that faces the sensor of a single view:
+// the one the sensor lies farthest beyond. -1 in a map, whose viewpoint is made up (viewpoint.h),
+// or with the sensor over the footprint.
+int sensorSide(const VerificationScene& scene, const SceneBox& local);
 
 // Whether `category` keeps training shapes to verify with. Objects without a surface are not
 // tried (calibration holds out the shapes of the objects its rooms show).

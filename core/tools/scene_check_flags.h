@@ -16,7 +16,7 @@ struct SceneCheckSwitch {
   void (*off)(SceneCheckParams&);
 };
 
-inline constexpr std::array<SceneCheckSwitch, 16> kSceneCheckSwitches{{
+inline constexpr std::array<SceneCheckSwitch, 17> kSceneCheckSwitches{{
     {"--no-top-height",
      "keep tables whose measured top is more than 0.1 m lower or higher than every training table's (top_extent.h)",
      [](SceneCheckParams& p) { p.top_extent.height_slack = 0; }},
@@ -52,6 +52,10 @@ inline constexpr std::array<SceneCheckSwitch, 16> kSceneCheckSwitches{{
     {"--no-under-top",
      "keep tables under whose measured top nothing is measured, as under a bed's or a cabinet's (under_top.h)",
      [](SceneCheckParams& p) { p.under_top.enabled = false; }},
+    {"--no-closed-front",
+     "count a single view's measured points under a table's top along the side facing the sensor, where a "
+     "dresser's front stands, as the open space under a table (under_top.h)",
+     [](SceneCheckParams& p) { p.under_top.near_edge = 0; }},
     {"--no-seat-area",
      "keep chairs and couches with little measured at seat height over their footprint, as over a desk's legs "
      "(seat_area.h)",

@@ -63,6 +63,37 @@ TEST(UnderTop, ATableIsOpenUnderneathACabinetIsNot) {
   EXPECT_FALSE(checkUnderTop(view, unverified).looked);
 }
 
+// A single view from the origin looking along +y: a dresser 1.2 x 0.45 m, 0.8 m high, 2 m ahead,
+// whose front of drawers faces the sensor; the box it was answered with as a table reaches 0.15 m
+// in front of that face (the fitted shape and the measured top do not meet exactly), so the
+// drawers lie inside the inner footprint. Behind them the sensor sees nothing under the top.
+// A table as big beside it shows the floor under its top beyond its near edge.
+TEST(UnderTop, ADressersFrontFacingTheSensorDoesNotOpenIt) {
+  VerificationScene view;  // the sensor at the origin
+  view.floor_z = 0.0f;
+  plate(view.points, -3.0f, 3.0f, 0.5f, 1.85f, 0.0f);    // the floor before both
+  plate(view.points, -0.6f, 0.6f, 1.85f, 2.3f, 0.8f);    // the dresser's top
+  wall(view.points, -0.6f, 0.6f, 1.85f, 0.0f, 0.8f);     // its drawers
+  plate(view.points, -2.6f, -1.4f, 1.85f, 2.6f, 0.0f);   // the floor under the table
+  plate(view.points, -2.6f, -1.4f, 1.85f, 2.3f, 0.8f);   // the table's top
+  for (const float x : {-2.55f, -1.45f}) wall(view.points, x - 0.02f, x + 0.02f, 1.9f, 0.0f, 0.77f);  // legs
+  const auto answeredAt = [](float x) {
+    return testing::verifiedStandingAt("dining_table", {1.2f, 0.6f, 0.8f}, x, 2.0f);  // y 1.7-2.3
+  };
+  const UnderTopCheck dresser = checkUnderTop(view, answeredAt(0.0f));
+  EXPECT_LT(dresser.open, 0.05f);
+  EXPECT_TRUE(dresser.closed());
+  UnderTopParams all_count;
+  all_count.near_edge = 0;
+  EXPECT_FALSE(checkUnderTop(view, answeredAt(0.0f), all_count).closed()) << "the drawers, counted";
+  const UnderTopCheck table = checkUnderTop(view, answeredAt(-2.0f));
+  EXPECT_GT(table.open, 0.3f) << "the floor beyond the near edge";
+  EXPECT_FALSE(table.closed());
+  VerificationScene map = view;  // a map's viewpoint is made up: every point counts
+  map.map = true;
+  EXPECT_FALSE(checkUnderTop(map, answeredAt(0.0f)).closed());
+}
+
 TEST(UnderTop, TheOpenShareCountsTheInnerFootprintsCells) {
   std::vector<Eigen::Vector3f> half;  // floor under one half of a 1 m square, at 0.8 m high
   plate(half, -0.5f, -0.05f, -0.5f, 0.5f, 0.0f);
