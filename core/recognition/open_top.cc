@@ -100,22 +100,23 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
                        : -1;
   if (back >= 0) check.max_behind = params.max_run_on;
   const int near = params.near_edge > 0 ? sensorSide(scene, local) : -1;
+  // The near strip spans the side's inner part, as the open top counts the inner footprint.
+  const float near_along = near >= 0 ? params.inner * local.box.size[1 - near / 2] / 2 : 0.0f;
   std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
     const bool over = local.overFootprint(p);
-    if (near >= 0 && over) {
+    if (over && (near >= 0 || params.max_level > 0)) {
       const Eigen::Vector3f q = local.boxFrame(p);
-      const float along = params.inner * local.box.size[1 - near / 2] / 2;
-      if (local.inFrom(near, q) < params.near_edge && local.alongSide(near, q) < along) {
+      if (near >= 0 && local.inFrom(near, q) < params.near_edge && local.alongSide(near, q) < near_along) {
         if (p.z() > top + params.from && p.z() < top + params.to) {
           ++check.near_above;
         } else if (height > params.body_from && p.z() < top) {
           ++check.near_body;
         }
       }
+      if (params.max_level > 0) footprint.push_back(q);
     }
-    if (params.max_level > 0 && over) footprint.push_back(local.boxFrame(p));
     if ((check.max_run_on > 0 || back >= 0) && !over) addBeside(local, p, params, beside);
     if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
     // The inner part of the footprint lies within it (most of the scene is over neither).
