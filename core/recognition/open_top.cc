@@ -82,6 +82,63 @@ StripShares stripShares(const std::vector<Eigen::Vector3f>& points, float width,
   return shares;
 }
 
+// The points in the top of the body's band over the footprint, per cell, and the cells holding
+// surface over the top (OpenTopParams::upper_clearance).
+class UpperCells {
+ public:
+  UpperCells(const SceneBox& local, const OpenTopParams& params)
+      : params_(params),
+        cell_(std::max(params.upper_cell, 1e-3f)),
+        width_(local.box.size.x()),
+        depth_(local.box.size.y()),
+        nx_(std::max(1, static_cast<int>(std::ceil(width_ / cell_)))),
+        ny_(std::max(1, static_cast<int>(std::ceil(depth_ / cell_)))),
+        in_band_(static_cast<size_t>(nx_ * ny_), 0),
+        over_top_(in_band_.size(), 0) {}
+
+  // `q` in the box's frame (SceneBox::boxFrame), over the footprint; `over_top`: whether it lies
+  // where the open top counts surface over the top.
+  void add(const Eigen::Vector3f& q, bool over_top) {
+    const bool band = q.z() > params_.upper_from && q.z() < params_.upper_to;
+    if (!band && !over_top) return;
+    const int ix = std::clamp(static_cast<int>((q.x() + width_ / 2) / cell_), 0, nx_ - 1);
+    const int iy = std::clamp(static_cast<int>((q.y() + depth_ / 2) / cell_), 0, ny_ - 1);
+    const auto c = static_cast<size_t>(iy * nx_ + ix);
+    if (band) ++in_band_[c];
+    if (over_top) over_top_[c] = 1;
+  }
+
+  // The band's points in cells clear of every cell with surface over the top.
+  int clear() const {
+    const int reach = static_cast<int>(std::lround(params_.upper_clearance / cell_));
+    int points = 0;
+    for (int y = 0; y < ny_; ++y) {
+      for (int x = 0; x < nx_; ++x) {
+        if (in_band_[static_cast<size_t>(y * nx_ + x)] > 0 && (params_.upper_clearance <= 0 || clearOfTop(x, y, reach))) {
+          points += in_band_[static_cast<size_t>(y * nx_ + x)];
+        }
+      }
+    }
+    return points;
+  }
+
+ private:
+  bool clearOfTop(int x, int y, int reach) const {
+    for (int v = std::max(0, y - reach); v <= std::min(ny_ - 1, y + reach); ++v) {
+      for (int u = std::max(0, x - reach); u <= std::min(nx_ - 1, x + reach); ++u) {
+        if (over_top_[static_cast<size_t>(v * nx_ + u)]) return false;
+      }
+    }
+    return true;
+  }
+
+  const OpenTopParams& params_;
+  float cell_, width_, depth_;
+  int nx_, ny_;
+  std::vector<int> in_band_;
+  std::vector<uint8_t> over_top_;
+};
+
 }  // namespace
 
 OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypothesis, const OpenTopParams& params,
@@ -102,11 +159,12 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   const int near = params.near_edge > 0 ? sensorSide(scene, local) : -1;
   // The near strip spans the side's inner part, as the open top counts the inner footprint.
   const float near_along = near >= 0 ? params.inner * local.box.size[1 - near / 2] / 2 : 0.0f;
+  UpperCells upper(local, params);
   std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
     const bool over = local.overFootprint(p);
-    if (over && (near >= 0 || params.max_level > 0)) {
+    if (over) {
       const Eigen::Vector3f q = local.boxFrame(p);
       if (near >= 0 && local.inFrom(near, q) < params.near_edge && local.alongSide(near, q) < near_along) {
         if (p.z() > top + params.from && p.z() < top + params.to) {
@@ -116,9 +174,9 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
         }
       }
       if (params.max_level > 0) footprint.push_back(q);
+      upper.add(q, p.z() > top + params.from && p.z() < top + params.to);
     }
     if ((check.max_run_on > 0 || back >= 0) && !over) addBeside(local, p, params, beside);
-    if (height > params.upper_from && height < params.upper_to && over) ++check.upper;
     // The inner part of the footprint lies within it (most of the scene is over neither).
     if (!over && params.inner <= 1) continue;
     if (!local.overFootprint(p, params.inner)) continue;
@@ -128,6 +186,7 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
       ++check.body;
     }
   }
+  check.upper = upper.clear();
   if (params.max_level > 0) {
     check.level_share = levelShare(footprint, local.box.size.x(), local.box.size.y(), top - local.floor_z, params);
   }

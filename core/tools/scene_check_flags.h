@@ -16,7 +16,7 @@ struct SceneCheckSwitch {
   void (*off)(SceneCheckParams&);
 };
 
-inline constexpr std::array<SceneCheckSwitch, 17> kSceneCheckSwitches{{
+inline constexpr std::array<SceneCheckSwitch, 18> kSceneCheckSwitches{{
     {"--no-top-height",
      "keep tables whose measured top is more than 0.1 m lower or higher than every training table's (top_extent.h)",
      [](SceneCheckParams& p) { p.top_extent.height_slack = 0; }},
@@ -31,6 +31,10 @@ inline constexpr std::array<SceneCheckSwitch, 17> kSceneCheckSwitches{{
     {"--no-upper-part",
      "keep chairs and couches with no measured surface in the top of their body, where a backrest is (open_top.h)",
      [](SceneCheckParams& p) { p.open_top.min_upper = 0; }},
+    {"--no-upper-clearance",
+     "count the points in the top of a chair's or couch's body next to surface standing over its top too, as a "
+     "wall's at its edge (open_top.h)",
+     [](SceneCheckParams& p) { p.open_top.upper_clearance = 0; }},
     {"--no-level-top",
      "keep couches over whose footprint the measured surface is one level, or beside which it runs on at a seat's "
      "height, as a bed's mattress does (open_top.h)",

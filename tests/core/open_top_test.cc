@@ -241,6 +241,38 @@ TEST(OpenTop, ACouchBehindAWallBeforeTheSensorIsContradicted) {
   EXPECT_FALSE(checkOpenTop(view, verifiedCouchAt(2.4f), off).hidden());
 }
 
+// A couch's box over a window seat 0.3 m high, the room's wall standing inside the box's back edge,
+// in a map (ScanNet's scene0001_00): the only surface in the top of its body is the wall's face,
+// which goes on over its top. A couch with its back against the same wall keeps its arms, clear of
+// the wall; the clearance off, the wall's face counts as a backrest.
+TEST(OpenTop, AWallAtTheEdgeIsNotTheTopOfACouchsBody) {
+  VerificationScene seat;
+  seat.floor_z = 0.0f;
+  seat.map = true;
+  plate(seat.points, -3.0f, 3.0f, -3.0f, 0.4f, 0.0f);
+  plate(seat.points, -1.0f, 1.0f, -0.45f, 0.4f, 0.3f);  // the window seat
+  wall(seat.points, -3.0f, 3.0f, 0.42f, 0.0f, 2.5f);    // the wall, 3 cm inside the box
+  const OpenTopCheck on_seat = checkOpenTop(seat, verifiedCouchAt(0.0f));
+  EXPECT_FALSE(on_seat.covered()) << "the wall stands outside the inner footprint";
+  EXPECT_EQ(on_seat.upper, 0);
+  EXPECT_TRUE(on_seat.topless());
+  EXPECT_TRUE(on_seat.contradicted());
+
+  OpenTopParams counted;
+  counted.upper_clearance = 0;
+  const OpenTopCheck face = checkOpenTop(seat, verifiedCouchAt(0.0f), counted);
+  EXPECT_GT(face.upper, 10) << "the wall's face from 0.55 to 0.75 m";
+  EXPECT_FALSE(face.contradicted());
+
+  VerificationScene room = couchOnTheFloor();  // its back's top at y 0.2-0.45 m, arms to y 0.2 m
+  wall(room.points, -3.0f, 3.0f, 0.42f, 0.0f, 2.5f);
+  const OpenTopCheck couch = checkOpenTop(room, verifiedCouchAt(0.0f));
+  EXPECT_GT(couch.upper, 10) << "the arms' fronts, more than 0.2 m from the wall";
+  EXPECT_LT(couch.upper, checkOpenTop(room, verifiedCouchAt(0.0f), counted).upper)
+      << "the wall's face and the arms' ends next to it do not count";
+  EXPECT_FALSE(couch.contradicted());
+}
+
 // A dining chair's training shape 0.5 m square: a seat at 0.45 m, its backrest along +y to 0.9 m.
 CategoryModel chairCategory() {
   TrainingObject chair;
