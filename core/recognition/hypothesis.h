@@ -32,6 +32,9 @@ struct Verification {
   // distance from the box's axis (verification.h, shapeProfile): 0 alike, 2 nothing in common.
   float profile_distance = 1.0f;
   int object = -1;     // the shape's training object (CategoryModel::objects)
+  // `seen` and `consistent` of the fitted shape's top part alone (VerificationParams::top_part: a
+  // chair's backrest, a couch's back), which the whole shape's fit can outweigh (top_seen.h).
+  int top_seen = 0, top_consistent = 0;
   float yaw = 0;       // its heading about up in the gravity frame (rad)
   Eigen::Vector3f center = Eigen::Vector3f::Zero();  // its box centre, scene coordinates
   // The surface the best pose explains: 5 cm cubes of the gravity frame, sorted. In a frame, the

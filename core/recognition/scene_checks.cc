@@ -33,7 +33,8 @@ SceneVerdict SceneChecks::operator()(const VerificationScene& scene, Hypothesis&
     return SceneVerdict::kKept;
   }
   if (checkSeatRun(scene, h, training_run_, params_.seat_run).tooShort() ||
-      checkSeatArea(scene, h, seat_area_, params_.seat_area).bare()) {
+      checkSeatArea(scene, h, seat_area_, params_.seat_area).bare() ||
+      checkTopSeen(scene, h, params_.top_seen).seenThrough()) {
     return SceneVerdict::kRejected;
   }
   const int object = h.verification ? h.verification->object : -1;

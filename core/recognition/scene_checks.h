@@ -3,7 +3,8 @@
 // them after verification: a table's box becomes its measured top, the top must be there and of
 // a training table's depth and height (top_extent.h), and something must be seen under it (under_top.h); a
 // chair's or couch's run at seat height must be long enough (seat_run.h), its seat must be
-// measured over its footprint (seat_area.h) and nothing may stand over its top (open_top.h); no
+// measured over its footprint (seat_area.h), a single view must not see through its fitted
+// backrest (top_seen.h) and nothing may stand over its top (open_top.h); no
 // hypothesis in a map may have bare floor in the middle of its footprint (bare_floor.h); a couch
 // over a level top, or beside a mattress running on, is refuted (open_top.h). Recognition and the
 // calibration share them (but the seat's area and the run-on, CalibrationParams::checks): a
@@ -20,6 +21,7 @@
 #include "core/recognition/seat_run.h"
 #include "core/recognition/seat_under_top.h"
 #include "core/recognition/top_extent.h"
+#include "core/recognition/top_seen.h"
 #include "core/recognition/under_top.h"
 #include "core/recognition/verification.h"
 
@@ -31,6 +33,7 @@ struct SceneCheckParams {
   SeatRunParams seat_run;
   SeatAreaParams seat_area;
   OpenTopParams open_top;
+  TopSeenParams top_seen;
   BareFloorParams bare_floor;
   // Across categories, after every category's answers are checked: recognition only.
   SeatUnderTopParams seat_under_top;

@@ -76,6 +76,9 @@ struct VerificationParams {
   // surface the map does hold: on the dev ScanNet rooms the depth test's fit was higher on false
   // chairs than on true ones. false: every scene on a depth buffer from its viewpoint.
   bool maps_in_3d = true;
+  // The fitted shape's points from this share of its height up are also scored on their own
+  // (Verification::top_seen, top_consistent): its top part, a chair's backrest.
+  float top_part = 0.75f;
 };
 
 // A global shape descriptor in the gravity frame: where an object's surface lies over height (12

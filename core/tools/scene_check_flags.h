@@ -16,7 +16,7 @@ struct SceneCheckSwitch {
   void (*off)(SceneCheckParams&);
 };
 
-inline constexpr std::array<SceneCheckSwitch, 18> kSceneCheckSwitches{{
+inline constexpr std::array<SceneCheckSwitch, 19> kSceneCheckSwitches{{
     {"--no-top-height",
      "keep tables whose measured top is more than 0.1 m lower or higher than every training table's (top_extent.h)",
      [](SceneCheckParams& p) { p.top_extent.height_slack = 0; }},
@@ -51,6 +51,10 @@ inline constexpr std::array<SceneCheckSwitch, 18> kSceneCheckSwitches{{
      "keep chairs and couches of a single view with measured surface standing over the side of their footprint "
      "that faces the sensor, as a wall between the sensor and them (open_top.h)",
      [](SceneCheckParams& p) { p.open_top.near_edge = 0; }},
+    {"--no-seen-top",
+     "keep chairs and couches of a single view through whose fitted shape's top part, a backrest, the sensor sees "
+     "nearly everywhere (top_seen.h)",
+     [](SceneCheckParams& p) { p.top_seen.enabled = false; }},
     {"--no-bare-floor", "keep hypotheses with bare floor in the middle of their footprint (bare_floor.h)",
      [](SceneCheckParams& p) { p.bare_floor.enabled = false; }},
     {"--no-under-top",

@@ -90,7 +90,8 @@ struct CalibrationParams {
   bool kinds = true;
   // Those checks: all of recognition's but the seat's area (seat_area.h), the surface running on
   // beside a couch or behind a chair's back, the side facing the sensor, the top of the body's
-  // clearance from a wall (open_top.h, under_top.h; measured in recognition only) and a table's top grown across what the sensor cannot see
+  // clearance from a wall, a backrest seen through (open_top.h, under_top.h, top_seen.h; measured
+  // in recognition only) and a table's top grown across what the sensor cannot see
   // (top_extent.h). Over four draws the seat's area in recognition alone moved the clouds' mAP by
   // +0.2 to +0.8, and in the calibration too by -0.8 to +0.9 (docs/EVALUATION.md, "A seat's
   // area"); on three pairs of draws the run-on in the calibration too cost the clouds 0.4 to 2.2
@@ -102,6 +103,7 @@ struct CalibrationParams {
     p.open_top.max_run_on = 0;
     p.open_top.near_edge = 0;
     p.open_top.upper_clearance = 0;
+    p.top_seen.enabled = false;
     p.under_top.near_edge = 0;
     p.top_extent.max_hidden_run = 0;
     return p;

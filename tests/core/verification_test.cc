@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include "core/common/upright_box.h"
+#include "core/recognition/top_seen.h"
 #include "core/scanner/scanner.h"
 #include "tests/common/known_gravity.h"
 #include "tests/common/synthetic_furniture.h"
@@ -145,6 +146,44 @@ TEST(Verification, ShapesWhereTheSensorSeesTheWallAreSeenThrough) {
   ASSERT_TRUE(fit.has_value());
   EXPECT_LT(fit->fit(), 0.3f) << fit->consistent << " of " << fit->seen;
   EXPECT_GT(fit->seen, 50);
+}
+
+// A bench 1.4 m long with its seat at 0.45 m before the wall, where voting would put a chair: the
+// chair's shape fits its seat and legs, but the sensor sees the wall through its backrest. On the
+// chair itself the backrest is measured. A single view only, and switched off it is kept.
+TEST(Verification, TheFittedShapesTopPartIsScoredApart) {
+  const Room room = chairBeforeWall();
+  std::vector<SceneObject> objects{{"", testing::boxMesh({-0.7f, -0.2f, 0}, {0.7f, 0.2f, 0.45f}), -1.0f, 0.6f, 0},
+                                   {"", testing::boxMesh({-3, 2.0f, 0}, {3, 2.1f, 2.5f}), 0, 0, 0}};
+  SyntheticSceneParams params;
+  params.camera_eye = {0.0f, -2.6f, 1.4f};
+  params.camera_target = {0.2f, 0.4f, 0.4f};
+  params.floor_size = 8.0f;
+  const SyntheticScene bench_room = composeScene(objects, params);
+  const VerificationScene bench_view = makeVerificationScene(bench_room.scene, knownFloor());
+  Hypothesis on_bench = chairAt(room, -1.0f, 0.6f, 0.0f);
+  on_bench.verification = verify(bench_view, room.chairs, on_bench);
+  ASSERT_TRUE(on_bench.verification.has_value());
+  const TopSeenCheck bench = checkTopSeen(bench_view, on_bench);
+  EXPECT_GT(bench.seen, 20) << "the wall measured behind the backrest";
+  EXPECT_LT(bench.share(), 0.05f) << bench.consistent << " of " << bench.seen;
+  EXPECT_TRUE(bench.seenThrough());
+  TopSeenParams off;
+  off.enabled = false;
+  EXPECT_FALSE(checkTopSeen(bench_view, on_bench, off).seenThrough());
+
+  const VerificationScene view = makeVerificationScene(room.rendered.scene, knownFloor());
+  Hypothesis on_chair = chairAt(room, kChairX + 0.06f, kChairY - 0.05f, kChairYaw + 0.2f);
+  on_chair.verification = verify(view, room.chairs, on_chair);
+  ASSERT_TRUE(on_chair.verification.has_value());
+  const TopSeenCheck chair = checkTopSeen(view, on_chair);
+  EXPECT_GT(chair.seen, 20);
+  EXPECT_GT(chair.share(), 0.5f) << "the backrest itself";
+  EXPECT_FALSE(chair.seenThrough());
+
+  VerificationScene as_map = bench_view;  // a map's sparse samples and made-up viewpoint
+  as_map.map = true;
+  EXPECT_FALSE(checkTopSeen(as_map, on_bench).looked);
 }
 
 TEST(Verification, ThePartsAChairHidesSayNothing) {
