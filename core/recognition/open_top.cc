@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstdint>
 #include <limits>
+#include <numeric>
 #include <vector>
 
 namespace ism {
@@ -110,13 +111,13 @@ class UpperCells {
 
   // The band's points in cells clear of every cell with surface over the top.
   int clear() const {
+    if (params_.upper_clearance <= 0) return std::accumulate(in_band_.begin(), in_band_.end(), 0);
     const int reach = static_cast<int>(std::lround(params_.upper_clearance / cell_));
     int points = 0;
     for (int y = 0; y < ny_; ++y) {
       for (int x = 0; x < nx_; ++x) {
-        if (in_band_[static_cast<size_t>(y * nx_ + x)] > 0 && (params_.upper_clearance <= 0 || clearOfTop(x, y, reach))) {
-          points += in_band_[static_cast<size_t>(y * nx_ + x)];
-        }
+        const int in_band = in_band_[static_cast<size_t>(y * nx_ + x)];
+        if (in_band > 0 && clearOfTop(x, y, reach)) points += in_band;
       }
     }
     return points;
@@ -163,26 +164,28 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
     const float height = p.z() - local.floor_z;
+    const bool over_top = p.z() > top + params.from && p.z() < top + params.to;
+    const bool in_body = height > params.body_from && p.z() < top;
     const bool over = local.overFootprint(p);
     if (over) {
       const Eigen::Vector3f q = local.boxFrame(p);
       if (near >= 0 && local.inFrom(near, q) < params.near_edge && local.alongSide(near, q) < near_along) {
-        if (p.z() > top + params.from && p.z() < top + params.to) {
+        if (over_top) {
           ++check.near_above;
-        } else if (height > params.body_from && p.z() < top) {
+        } else if (in_body) {
           ++check.near_body;
         }
       }
       if (params.max_level > 0) footprint.push_back(q);
-      upper.add(q, p.z() > top + params.from && p.z() < top + params.to);
+      upper.add(q, over_top);
     }
     if ((check.max_run_on > 0 || back >= 0) && !over) addBeside(local, p, params, beside);
     // The inner part of the footprint lies within it (most of the scene is over neither).
     if (!over && params.inner <= 1) continue;
     if (!local.overFootprint(p, params.inner)) continue;
-    if (p.z() > top + params.from && p.z() < top + params.to) {
+    if (over_top) {
       ++check.above;
-    } else if (p.z() > local.floor_z + params.body_from && p.z() < top) {
+    } else if (in_body) {
       ++check.body;
     }
   }
@@ -217,14 +220,6 @@ int backSide(const TrainingObject& object, float yaw) {
   const Eigen::Vector2f turned(c * back.x() - s * back.y(), s * back.x() + c * back.y());
   if (std::abs(turned.x()) > std::abs(turned.y())) return turned.x() > 0 ? 0 : 1;
   return turned.y() > 0 ? 2 : 3;
-}
-
-float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
-                      const OpenTopParams& params) {
-  if (!hypothesis.verification) return 0;
-  const int object = hypothesis.verification->object;
-  if (object < 0 || static_cast<size_t>(object) >= category.objects.size()) return 0;
-  return checkOpenTop(scene, hypothesis, params, &category.objects[static_cast<size_t>(object)]).behind_back_share;
 }
 
 float levelShare(const std::vector<Eigen::Vector3f>& points, float width, float depth, float top,

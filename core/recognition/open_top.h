@@ -156,12 +156,6 @@ float runOnShare(const std::vector<Eigen::Vector3f>& points, float width, float 
 // -1 when that surface lies on the axis.
 int backSide(const TrainingObject& object, float yaw);
 
-// The share of the cells of the strip behind a verified, upright hypothesis' back (backSide of its
-// fitted shape in `category`) whose highest point lies within one level band (runOnShare's level
-// part); 0 where not looked at (params.enabled or behind_back off, max_run_on 0, no fitted shape).
-float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
-                      const OpenTopParams& params = {});
-
 // Whether each of the category's training shapes is less level than params.max_level (couches,
 // whose back and arms rise over the seat; not chairs, whose seat covers most of the footprint);
 // false without shapes or with max_level 0.

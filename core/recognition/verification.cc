@@ -619,15 +619,17 @@ std::optional<Verification> verifyWith(const VerificationScene& scene, const Cat
   best.consistent = a.consistent;
   best.claimed = a.claimed;
   best.object = best_pose.object;
-  // The top part on its own, among the points the fit was scored on.
-  std::vector<Eigen::Vector3f> top;
-  const size_t scored = std::min<size_t>(static_cast<size_t>(params.max_points), object.surface.size());
-  for (size_t i = 0; i < scored; ++i) {
-    if (object.surface[i].z() >= params.top_part * object.size.z()) top.push_back(object.surface[i]);
+  // The top part on its own, among the points the fit was scored on; a map's is not read.
+  if (!scene.map && params.top_part > 0) {
+    std::vector<Eigen::Vector3f> top;
+    const size_t scored = std::min<size_t>(static_cast<size_t>(params.max_points), object.surface.size());
+    for (size_t i = 0; i < scored; ++i) {
+      if (object.surface[i].z() >= params.top_part * object.size.z()) top.push_back(object.surface[i]);
+    }
+    const Agreement t = poseAgreement(scene, sv, top, static_cast<int>(top.size()), best_pose, scratch);
+    best.top_seen = t.seen;
+    best.top_consistent = t.consistent;
   }
-  const Agreement t = poseAgreement(scene, sv, top, static_cast<int>(top.size()), best_pose, scratch);
-  best.top_seen = t.seen;
-  best.top_consistent = t.consistent;
   best.yaw = std::remainder(best_pose.yaw, 2 * kPi);
   const Eigen::Vector3f fitted(best_pose.xy.x(), best_pose.xy.y(), floor_z + object.size.z() / 2);
   best.center = scene.origin + scene.to_gravity.transpose() * fitted;

@@ -77,7 +77,8 @@ struct VerificationParams {
   // chairs than on true ones. false: every scene on a depth buffer from its viewpoint.
   bool maps_in_3d = true;
   // The fitted shape's points from this share of its height up are also scored on their own
-  // (Verification::top_seen, top_consistent): its top part, a chair's backrest.
+  // (Verification::top_seen, top_consistent): its top part, a chair's backrest. Single views only,
+  // the only ones top_seen.h reads; 0: not scored (both stay 0).
   float top_part = 0.75f;
 };
 

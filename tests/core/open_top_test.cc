@@ -294,6 +294,16 @@ TEST(OpenTop, TheBackSideIsWhereTheShapesTopQuarterLies) {
   EXPECT_EQ(backSide(TrainingObject{}, 0.0f), -1) << "no surface";
 }
 
+// The share checkOpenTop finds level behind the back of the shape `hypothesis` was fitted with; 0
+// without a fitted shape.
+float levelBehindBack(const VerificationScene& scene, const Hypothesis& hypothesis, const CategoryModel& category,
+                      const OpenTopParams& params = {}) {
+  if (!hypothesis.verification) return 0;
+  const int object = hypothesis.verification->object;
+  if (object < 0 || static_cast<size_t>(object) >= category.objects.size()) return 0;
+  return checkOpenTop(scene, hypothesis, params, &category.objects[static_cast<size_t>(object)]).behind_back_share;
+}
+
 // A chair answered on a bench at a bed's foot has the mattress, level at 0.72 m, behind its back:
 // refuted. Turned to face the bed, or drawn up to a table whose top (0.74 m) lies before it, the
 // strip behind its back is empty, though the table fills the strip before it.

@@ -171,6 +171,12 @@ TEST(Verification, TheFittedShapesTopPartIsScoredApart) {
   TopSeenParams off;
   off.enabled = false;
   EXPECT_FALSE(checkTopSeen(bench_view, on_bench, off).seenThrough());
+  VerificationParams unscored;
+  unscored.top_part = 0;
+  const auto whole_only = verify(bench_view, room.chairs, on_bench, unscored);
+  ASSERT_TRUE(whole_only.has_value());
+  EXPECT_EQ(whole_only->top_seen, 0) << "the top part not scored";
+  EXPECT_EQ(whole_only->seen, on_bench.verification->seen) << "the whole shape's fit as before";
 
   const VerificationScene view = makeVerificationScene(room.rendered.scene, knownFloor());
   Hypothesis on_chair = chairAt(room, kChairX + 0.06f, kChairY - 0.05f, kChairYaw + 0.2f);
@@ -331,6 +337,7 @@ TEST(Verification, AMapIsCheckedInThreeDimensions) {
   EXPECT_EQ(fit->object, 1) << "the chair's shape, not the table's";
   EXPECT_GT(fit->fit(), 0.6f) << fit->consistent << " of " << fit->seen;
   EXPECT_LT((fit->center.head<2>() - Eigen::Vector2f(kChairX, kChairY)).norm(), 0.06f);
+  EXPECT_EQ(fit->top_seen, 0) << "a map's top part is not scored: top_seen.h reads single views";
   // Against the wall, the shape's parts that stand out from it have no measured point near them;
   // in the open, none has.
   const auto wall = verify(scene, room.chairs, chairAt(room, -1.5f, 1.75f, 0.0f));
