@@ -163,10 +163,12 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
   UpperCells upper(local, params);
   std::vector<Eigen::Vector3f> footprint, beside;  // SceneBox::boxFrame
   for (const auto& p : scene.points) {
-    const float height = p.z() - local.floor_z;
-    const bool over_top = p.z() > top + params.from && p.z() < top + params.to;
-    const bool in_body = height > params.body_from && p.z() < top;
     const bool over = local.overFootprint(p);
+    if ((check.max_run_on > 0 || back >= 0) && !over) addBeside(local, p, params, beside);
+    // The inner part of the footprint lies within it (most of the scene is over neither).
+    if (!over && params.inner <= 1) continue;
+    const bool over_top = p.z() > top + params.from && p.z() < top + params.to;
+    const bool in_body = p.z() - local.floor_z > params.body_from && p.z() < top;
     if (over) {
       const Eigen::Vector3f q = local.boxFrame(p);
       if (near >= 0 && local.inFrom(near, q) < params.near_edge && local.alongSide(near, q) < near_along) {
@@ -179,9 +181,6 @@ OpenTopCheck checkOpenTop(const VerificationScene& scene, const Hypothesis& hypo
       if (params.max_level > 0) footprint.push_back(q);
       upper.add(q, over_top);
     }
-    if ((check.max_run_on > 0 || back >= 0) && !over) addBeside(local, p, params, beside);
-    // The inner part of the footprint lies within it (most of the scene is over neither).
-    if (!over && params.inner <= 1) continue;
     if (!local.overFootprint(p, params.inner)) continue;
     if (over_top) {
       ++check.above;
