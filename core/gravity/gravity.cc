@@ -139,9 +139,14 @@ float percentile(std::vector<float> values, float fraction) {
   return *at;
 }
 
+struct Floor {
+  Plane plane;
+  size_t support = 0;  // sample points within the inlier distance of the plane found (before refine)
+};
+
 // The floor: among planes within `max_angle` of `prior_up` (normals turned towards it), the one
 // with most points that has almost none below it.
-std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const Eigen::Vector3f& prior_up,
+std::optional<Floor> findFloor(const std::vector<Eigen::Vector3f>& sample, const Eigen::Vector3f& prior_up,
                                float max_angle, bool normal_is_prior, const GravityParams& params) {
   if (sample.size() < 3) return std::nullopt;
   std::mt19937 rng(params.seed);
@@ -181,7 +186,7 @@ std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const
   if (!best) return std::nullopt;
   Plane refined = refine(*best, sample, params.inlier_distance);
   if (normal_is_prior) {
-    // A given up is not second-guessed: only the floor's level is refined.
+    // Square to a given up: only the floor's level is refined.
     double level = 0;
     size_t n = 0;
     for (const auto& p : sample) {
@@ -190,9 +195,9 @@ std::optional<Plane> findFloor(const std::vector<Eigen::Vector3f>& sample, const
         ++n;
       }
     }
-    return Plane{prior_up, static_cast<float>(level / static_cast<double>(n))};
+    return Floor{Plane{prior_up, static_cast<float>(level / static_cast<double>(n))}, best_support};
   }
-  return refined.normal.dot(prior_up) >= min_cos ? refined : *best;
+  return Floor{refined.normal.dot(prior_up) >= min_cos ? refined : *best, best_support};
 }
 
 // How far from a plane its points may lie: the sensor's noise grows with the square of the range
@@ -532,14 +537,26 @@ GravityResult estimateGravity(const std::vector<Eigen::Vector3f>& points, const 
     g.up = sensor_up.normalized();
     g.source = UpSource::kAssumed;
   }
-  std::optional<Plane> floor = findFloor(sample, g.up, radians(given_up ? params.given_up_tolerance_deg : params.max_tilt_deg),
+  std::optional<Floor> floor = findFloor(sample, g.up, radians(given_up ? params.given_up_tolerance_deg : params.max_tilt_deg),
                                          given_up.has_value(), params);
+  bool up_from_floor = !given_up && floor.has_value();
+  if (given_up && params.given_up_kept_deg < params.given_up_tolerance_deg) {
+    // The given up checked against the floor: planes within the tolerance of it, not only square
+    // to it. A floor that holds more points than the one square to the given up, and whose normal
+    // is more than given_up_kept_deg from it, shows the caller's frame to be tilted.
+    std::optional<Floor> tilted = findFloor(sample, g.up, radians(params.given_up_tolerance_deg), false, params);
+    if (tilted && (!floor || tilted->support > floor->support) &&
+        tilted->plane.normal.dot(g.up) < std::cos(radians(params.given_up_kept_deg))) {
+      floor = tilted;
+      up_from_floor = true;
+    }
+  }
   if (floor) {
-    if (!given_up) {
-      g.up = floor->normal;
+    if (up_from_floor) {
+      g.up = floor->plane.normal;
       g.source = UpSource::kFloor;
     }
-    g.floor_level = floor->offset;
+    g.floor_level = floor->plane.offset;
   }
 
   const Tolerance tolerance{sensor_origin, params};

@@ -6,7 +6,8 @@
 // furniture, stop voting at all.
 //
 // Up comes from the caller when it knows it (a robot's TF, an accelerometer, a gravity-levelled
-// room scan); otherwise it is the normal of the floor, found by RANSAC among planes near the
+// room scan), checked against the floor (GravityParams::given_up_kept_deg); otherwise it is the
+// normal of the floor, found by RANSAC among planes near the
 // sensor's own up (the optical frame's -y) with almost no points below them. A scene without a
 // visible floor keeps the sensor's up and has no floor: heights are then unknown.
 #include <Eigen/Core>
@@ -28,6 +29,16 @@ struct GravityParams {
   float max_tilt_deg = 45.0f;
   // Given up: the floor is searched among planes within this angle of it.
   float given_up_tolerance_deg = 10.0f;
+  // A given up is kept unless the floor among those planes holds more points than the plane square
+  // to it and its normal lies more than this (deg) from it: then the caller's frame is tilted and
+  // the floor's normal is up (source kFloor). A levelled robot's accelerometer and a room scan's
+  // alignment are good to a degree or two, and a single frame's floor fitted through the Kinect's
+  // depth distortion is off by as much (SUN RGB-D's given z is 0.8-2 deg off its frames' floor
+  // planes), so only a larger tilt is taken to be the caller's; a map aligned 7 deg off (one of
+  // ScanNet's) holds no floor square to its z at all. given_up_tolerance_deg or more: the given up
+  // is never second-guessed (ism-detect, ism-eval --trust-given-up). docs/EVALUATION.md, "A given
+  // up checked against the floor".
+  float given_up_kept_deg = 3.0f;
   // A point within this distance of a plane supports it (m) when planes are searched. Points are
   // labelled as on a plane within the larger of this and noise_sigmas times the sensor's depth
   // noise at their range (NoiseParams' Kinect model: 2.6 cm at 4 m).

@@ -68,4 +68,11 @@ bool Model::has(CodebookType type) const {
   return true;
 }
 
+void Model::trustGivenUp() {
+  // The floor is searched within given_up_tolerance_deg of a given up, so no floor found is
+  // farther from it than 90 deg.
+  front_end.gravity.given_up_kept_deg = 90;
+  for (Model& draw : draws) draw.trustGivenUp();
+}
+
 }  // namespace ism

@@ -213,6 +213,9 @@ struct Model {
   // file's draws must: their plans index categories alike).
   bool sameCategories(const Model& other) const;
   bool has(CodebookType type) const;
+  // Keep a caller's up whatever the scene's floor shows (GravityParams::given_up_kept_deg), in
+  // this model and its draws alike (ism-detect, ism-eval --trust-given-up).
+  void trustGivenUp();
 };
 
 }  // namespace ism

@@ -70,6 +70,7 @@ void toProto(const GravityParams& g, v1::GravityParams* out) {
   out->set_seed(g.seed);
   out->set_wall_cell(g.wall_cell);
   out->set_wall_max_seen_through(g.wall_max_seen_through);
+  out->set_given_up_kept_deg(g.given_up_kept_deg);
 }
 
 void toProto(const ActivationParams& a, v1::ActivationParams* out) {
@@ -217,9 +218,11 @@ class Reader {
     g.seed = in.seed();
     g.wall_cell = in.wall_cell();
     g.wall_max_seen_through = in.wall_max_seen_through();
+    if (in.has_given_up_kept_deg()) g.given_up_kept_deg = in.given_up_kept_deg();
     const bool valid = g.wall_cell >= 0 && g.wall_cell <= 10 && g.wall_max_seen_through >= 0 &&
                        g.wall_max_seen_through <= 1000 && g.max_tilt_deg >= 0 && g.max_tilt_deg <= 90 &&
-                       g.given_up_tolerance_deg >= 0 && g.given_up_tolerance_deg <= 90 && g.inlier_distance > 0 && std::isfinite(g.inlier_distance) &&
+                       g.given_up_tolerance_deg >= 0 && g.given_up_tolerance_deg <= 90 && g.given_up_kept_deg >= 0 &&
+                       g.given_up_kept_deg <= 90 && g.inlier_distance > 0 && std::isfinite(g.inlier_distance) &&
                        g.noise_sigmas >= 0 && g.min_floor_fraction >= 0 && g.min_floor_fraction <= 1 &&
                        g.max_below_fraction >= 0 && g.max_below_fraction <= 1 && g.below_margin >= 0 &&
                        g.wall_min_height >= 0 && g.wall_min_width >= 0 && g.wall_tilt_deg >= 0 &&

@@ -58,6 +58,9 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0.0f, 0.99f))
       ->capture_default_str();
   app.add_option("--up", up, "the scene's up direction, X,Y,Z in its coordinates, when known (else the floor is found)");
+  bool trust_given_up = false;
+  app.add_flag("--trust-given-up", trust_given_up,
+               "keep --up even where the scene's floor is tilted from it (GravityParams::given_up_kept_deg)");
   app.add_option("--max", options.max_hypotheses, "at most N hypotheses (0 = all)")->check(ism::cli::nonNegative());
   app.add_flag("--json", json, "print JSON instead of a table");
   app.add_option("--picture", picture,
@@ -113,6 +116,9 @@ int main(int argc, char** argv) {
     options.keep_votes = !debug_ply.empty();
     std::vector<ism::Model> loaded;
     for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));
+    for (auto& m : loaded) {
+      if (trust_given_up) m.trustGivenUp();
+    }
     std::vector<const ism::Model*> models;
     for (const auto& m : loaded) models.push_back(&m);
     const ism::Model& model = loaded.front();  // the picture's and the votes' model

@@ -102,6 +102,9 @@ int main(int argc, char** argv) {
   real->add_option("--json", json_path, "also write the results as JSON");
   bool no_up = false;
   real->add_flag("--no-up", no_up, "never pass the scenes' up, as a caller who does not know it");
+  bool trust_given_up = false;
+  real->add_flag("--trust-given-up", trust_given_up,
+                 "keep the scenes' up even where their floor is tilted from it (GravityParams::given_up_kept_deg)");
   bool no_verify = false;
   real->add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified (verification.h)");
   bool centre_suppression = false;
@@ -202,6 +205,9 @@ int main(int argc, char** argv) {
       for (const auto& path : ism::findSceneAnnotations(inputs)) scenes.push_back(ism::readSceneAnnotation(path));
       std::vector<ism::Model> loaded;
       for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));
+      for (auto& m : loaded) {
+        if (trust_given_up) m.trustGivenUp();
+      }
       const ism::Model& model = loaded.front();
       for (size_t m = 1; m < loaded.size(); ++m) params.more_models.push_back(&loaded[m]);
       if (all_combinations) {

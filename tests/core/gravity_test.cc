@@ -91,6 +91,43 @@ TEST(Gravity, AGivenUpIsKeptAndTheFloorLevelFound) {
   EXPECT_THROW(estimateGravity(room.camera_points, Eigen::Vector3f::Zero(), {0, -1, 0}, Eigen::Vector3f(NAN, 0, 1)), Error);
 }
 
+// A caller's up a degree or two off is kept; one farther off the floor's normal than
+// given_up_kept_deg gives way to it, unless the caller's up is to be trusted.
+TEST(Gravity, AGivenUpTiltedFarFromTheFloorGivesWayToTheFloor) {
+  const Room room = renderRoom({0, -2.5f, 1.2f}, {0, 0.5f, 0.4f});
+  // Tilted about the camera's x axis, square to up: the given up leans towards or away from the
+  // camera.
+  const auto tilted = [&](float degrees) {
+    const Eigen::Vector3f axis = room.up_in_camera.cross(Eigen::Vector3f::UnitZ()).normalized();
+    return Eigen::Vector3f(Eigen::AngleAxisf(degrees * static_cast<float>(M_PI) / 180.0f, axis) * room.up_in_camera);
+  };
+  GravityParams params;
+  ASSERT_EQ(params.given_up_kept_deg, 3.0f);
+  for (const float degrees : {-1.5f, 1.5f}) {
+    const GravityResult r = estimateGravity(room.camera_points, Eigen::Vector3f::Zero(), {0, -1, 0}, tilted(degrees), params);
+    EXPECT_EQ(r.gravity.source, UpSource::kGiven) << degrees;
+    EXPECT_LT(degreesBetween(r.gravity.up, tilted(degrees)), 1e-3f) << degrees;
+    EXPECT_TRUE(r.gravity.hasFloor()) << degrees;
+  }
+  for (const float degrees : {-7.0f, 7.0f}) {
+    const GravityResult r = estimateGravity(room.camera_points, Eigen::Vector3f::Zero(), {0, -1, 0}, tilted(degrees), params);
+    EXPECT_EQ(r.gravity.source, UpSource::kFloor) << degrees;
+    EXPECT_LT(degreesBetween(r.gravity.up, room.up_in_camera), 0.5f) << degrees;
+    ASSERT_TRUE(r.gravity.hasFloor()) << degrees;
+    EXPECT_NEAR(*r.gravity.floor_level, room.floor_level_in_camera, 0.02f) << degrees;
+  }
+  // Trusted (as ism-detect --trust-given-up): never second-guessed.
+  params.given_up_kept_deg = params.given_up_tolerance_deg;
+  const GravityResult r = estimateGravity(room.camera_points, Eigen::Vector3f::Zero(), {0, -1, 0}, tilted(7.0f), params);
+  EXPECT_EQ(r.gravity.source, UpSource::kGiven);
+  EXPECT_LT(degreesBetween(r.gravity.up, tilted(7.0f)), 1e-3f);
+  // Beyond the tolerance the floor is not searched for: the given up stays, floor or none.
+  params.given_up_kept_deg = 3.0f;
+  const GravityResult far = estimateGravity(room.camera_points, Eigen::Vector3f::Zero(), {0, -1, 0}, tilted(20.0f), params);
+  EXPECT_EQ(far.gravity.source, UpSource::kGiven);
+  EXPECT_LT(degreesBetween(far.gravity.up, tilted(20.0f)), 1e-3f);
+}
+
 TEST(Gravity, WithoutAFloorTheSensorsUpIsAssumedAndATableTopIsNoFloor) {
   // No floor rendered: the table top is the largest horizontal plane, but chair legs and the wall
   // reach below it.

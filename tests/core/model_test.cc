@@ -292,6 +292,28 @@ TEST(ModelFile, TheWallOptionsRoundTripAndOldFilesHaveNone) {
   }
 }
 
+TEST(ModelFile, TheGivenUpsCheckRoundTripsAndOldFilesHaveTheDefault) {
+  Model model = modelWithOneCategory();
+  model.front_end.gravity.given_up_kept_deg = 10.0f;
+  EXPECT_EQ(parseModel(serializeModel(model), "new.ismm").front_end.gravity.given_up_kept_deg, 10.0f);
+  // A file written before the field existed holds nothing for it: the default check applies.
+  const std::string old_file = editedModelFile([](v1::ModelData& data) {
+    ASSERT_TRUE(data.front_end().gravity().has_given_up_kept_deg());
+    data.mutable_front_end()->mutable_gravity()->clear_given_up_kept_deg();
+  });
+  EXPECT_EQ(parseModel(old_file, "old.ismm").front_end.gravity.given_up_kept_deg, GravityParams{}.given_up_kept_deg);
+  model.front_end.gravity.given_up_kept_deg = -1.0f;
+  expectError([&] { parseModel(serializeModel(model), "broken.ismm"); }, ErrorCode::kCorruptModel,
+              "front-end gravity parameters are out of range");
+  // Trusted in the model and its draws alike, so that they still make one ensemble.
+  model.front_end.gravity.given_up_kept_deg = 3.0f;
+  model.draws.push_back(model);
+  model.trustGivenUp();
+  EXPECT_GE(model.front_end.gravity.given_up_kept_deg, model.front_end.gravity.given_up_tolerance_deg);
+  EXPECT_TRUE(sameFrontEnd(model, model.draws[0]));
+  EXPECT_EQ(parseModel(serializeModel(model), "trusted.ismm").draws.size(), 1u);
+}
+
 TEST(ModelFile, KeypointParametersRoundTripAndOldFilesLoadAsBoundary) {
   Model model = modelWithOneCategory();
   EXPECT_EQ(model.front_end.keypoints.method, KeypointMethod::kAuto) << "new models default to kAuto";
