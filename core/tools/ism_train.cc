@@ -89,6 +89,11 @@ int main(int argc, char** argv) {
   app.add_option("--wall-seen-through", params.front_end.gravity.wall_max_seen_through,
                  "a plane with more points seen through it than this fraction of its own is no wall (0 = not looked at; maps are not)")
       ->check(CLI::Range(0.0, 1000.0));
+  app.add_option("--given-up-kept", params.front_end.gravity.given_up_kept_deg,
+                 "a scene's given up farther than this (deg) from the normal of a floor that holds more points than "
+                 "the plane square to it gives way to that normal (10 or more: never)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 90.0));
   app.add_option("--threads", params.threads, "worker threads (0 = all cores)")->check(ism::cli::nonNegative());
   app.add_option("--bin", bins, "Hough bin size of a category, CATEGORY=METRES (repeatable)");
   // Each step of the default pipeline can be turned off alone: docs/EVALUATION.md's ablation.

@@ -119,6 +119,41 @@ TEST_F(Tools, DetectNamesTheFileAndWhatIsWrongWithIt) {
   expectRefused(run("ism-detect", {"-m", kModel, dir_.string()}), {"invalid input", "unsupported cloud format"});
 }
 
+// A room's floor 7 deg off the --up given, as a map whose alignment is tilted: the floor's normal
+// is up, unless the caller's up is to be trusted (--trust-given-up).
+TEST_F(Tools, DetectChecksTheGivenUpAgainstTheFloorUnlessTrusted) {
+  const float tilt = 7.0f * static_cast<float>(M_PI) / 180.0f;
+  std::string points;
+  int count = 0;
+  for (int i = 0; i < 100; ++i) {
+    for (int j = 0; j < 100; ++j) {
+      const float x = -2.0f + 0.04f * static_cast<float>(i), y = 0.04f * static_cast<float>(j);
+      points += std::to_string(x) + " " + std::to_string(y * std::cos(tilt)) + " " + std::to_string(y * std::sin(tilt)) + "\n";
+      ++count;
+    }
+  }
+  const std::string n = std::to_string(count);
+  const fs::path scene = file("tilted_floor.pcd", "# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\n"
+                                                  "COUNT 1 1 1\nWIDTH " + n + "\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS " +
+                                                  n + "\nDATA ascii\n" + points);
+  const auto gravity = [&](std::vector<std::string> extra) {
+    std::vector<std::string> args = {"-m", kModel, "--json", "--up", "0,0,1"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    args.push_back(scene.string());
+    const Outcome r = run("ism-detect", args);
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    return r.exit_code == 0 ? nlohmann::json::parse(r.out)[0]["gravity"] : nlohmann::json::object();
+  };
+  const nlohmann::json checked = gravity({});
+  EXPECT_EQ(checked["source"], "floor") << checked.dump();
+  ASSERT_EQ(checked["up"].size(), 3u) << checked.dump();
+  EXPECT_NEAR(checked["up"][1].get<float>(), -std::sin(tilt), 0.01f) << checked.dump();
+  EXPECT_NEAR(checked["up"][2].get<float>(), std::cos(tilt), 0.01f) << checked.dump();
+  const nlohmann::json trusted = gravity({"--trust-given-up"});
+  EXPECT_EQ(trusted["source"], "given") << trusted.dump();
+  EXPECT_EQ(trusted["up"], nlohmann::json::array({0.0, 0.0, 1.0})) << trusted.dump();
+}
+
 TEST_F(Tools, DetectRefusesABrokenModel) {
   const fs::path scene = file("tiny.pcd", kTinyPcd);
   const std::string whole = ism::readFileBytes(kModel);
