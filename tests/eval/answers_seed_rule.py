@@ -7,7 +7,7 @@ quarter of that object's longest edge of its centre, as ../shared/tools/score_de
 frame. ism-eval real recognises down to confidence 0.01 and counts the answers above the threshold;
 this runs recognition at the threshold itself, as a client does.
 
-    /usr/bin/python3 tests/eval/answers_seed_rule.py --bin build/core -m MODEL [--out DIR] [--objects]
+    /usr/bin/python3 tests/eval/answers_seed_rule.py --bin build/core -m MODEL [--out DIR] [--objects] [--cloud-up X,Y,Z]
         [-- ISM-DETECT OPTIONS]
 
 Prints r = TP / (objects + FP) per class with (TP, FP), and false answers per scan. With
@@ -34,11 +34,11 @@ CLASS = {"office_chair": "chair", "dining_chair": "chair", "chair": "chair", "di
          "table": "table|desk", "desk": "table|desk", "couch": "sofa", "sofa": "sofa"}
 
 
-def scenes():
+def scenes(cloud_up="0,0,1"):
     frames = [os.path.join(REAL, "kinect", n) for n in ("tum_desk", "office1")]
     frames.append(os.path.join(ROOT, "models", "sample", "living_room"))
     clouds = sorted(p[:-4] for d in ("sunrgbd", "scannet") for p in glob.glob(os.path.join(REAL, d, "*.pcd")))
-    return [(f, []) for f in frames] + [(c, ["--up", "0,0,1"]) for c in clouds]
+    return [(f, []) for f in frames] + [(c, ["--up", cloud_up]) for c in clouds]
 
 
 def right_by_rule(h, o):
@@ -111,6 +111,8 @@ def main():
     ap.add_argument("-m", "--model", required=True)
     ap.add_argument("--out", help="keep each scene's ism-detect --json here")
     ap.add_argument("--objects", action="store_true", help="list each object's best answers and each false answer")
+    ap.add_argument("--cloud-up", default="0,0,1",
+                    help="the up the clouds are sent with (their frames' z; another to see what a slightly tilted up moves)")
     ap.add_argument("detect_options", nargs="*", help="after --: more ism-detect options")
     args = ap.parse_args()
     if not os.path.isdir(REAL):
@@ -129,7 +131,7 @@ def main():
     totals = {c: [0, 0, 0] for c in CLASSES}  # TP, FP, objects
     count = 0
     with ThreadPoolExecutor(max_workers=2) as pool:
-        for stem, path in pool.map(detect, scenes()):
+        for stem, path in pool.map(detect, scenes(args.cloud_up)):
             count += 1
             with open(stem + ".json") as f:
                 objects = [o for o in json.load(f)["objects"] if o["category"] in CLASS]
