@@ -280,6 +280,11 @@ struct RealEvalParams {
   ViewpointPolicy viewpoint = ViewpointPolicy::kAuto;
   float eye_height = 1.5f;
   bool give_up = true;  // pass a gravity-levelled scene's up (AnnotatedScene::up_is_given)
+  // The given up turned by this angle towards the azimuth (from the scene's gravity-frame x to its
+  // y): the answers of maps are chaotic in their up (a change far below the sensor's noise moves
+  // keypoints across the grids), so a step is judged over several such draws (tilt_spread.py).
+  float up_tilt_deg = 0.0f;
+  float up_tilt_azimuth_deg = 0.0f;
   ProgressFn progress;  // one line per scene; may be empty
   // More models with the evaluated one's categories and front end: the ensemble is evaluated.
   std::vector<const Model*> more_models;
@@ -289,6 +294,9 @@ struct RealResult {
   std::vector<SceneRun> scenes;
   std::vector<RealCombination> combinations;  // in the order of params.strategies
 };
+
+// The up passed to a gravity-levelled scene: its annotated up turned by params' tilt.
+Eigen::Vector3f givenUp(const AnnotatedScene& scene, const RealEvalParams& params);
 
 // The mean of AP@0.25 over the classes that have objects; NaN when none has.
 double meanAp25(const RealCombination& combination);

@@ -368,6 +368,16 @@ std::vector<ClassScore> ClassScorer::scores() const {
   return out;
 }
 
+Eigen::Vector3f givenUp(const AnnotatedScene& scene, const RealEvalParams& params) {
+  const Eigen::Vector3f up = scene.to_gravity.row(2).transpose();
+  if (params.up_tilt_deg == 0.0f) return up;
+  const float tilt = params.up_tilt_deg * static_cast<float>(M_PI) / 180.0f;
+  const float azimuth = params.up_tilt_azimuth_deg * static_cast<float>(M_PI) / 180.0f;
+  const Eigen::Vector3f towards = std::cos(azimuth) * scene.to_gravity.row(0).transpose() +
+                                  std::sin(azimuth) * scene.to_gravity.row(1).transpose();
+  return (std::cos(tilt) * up + std::sin(tilt) * towards).normalized();
+}
+
 RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedScene>& scenes,
                               const RealEvalParams& params) {
   if (params.strategies.empty()) throw Error(ErrorCode::kInvalidInput, "no recognition strategy to evaluate");
@@ -384,7 +394,7 @@ RealResult evaluateRealScenes(const Model& model, const std::vector<AnnotatedSce
     run.points = scene.cloud->size();
     // Gravity-levelled data says so, as a robot that knows its pose would; the others make the
     // gravity stage find the floor.
-    if (annotation.up_is_given && params.give_up) scene.up = Eigen::Vector3f(annotation.to_gravity.row(2).transpose());
+    if (annotation.up_is_given && params.give_up) scene.up = givenUp(annotation, params);
     if (params.viewpoint == ViewpointPolicy::kAuto) {
       ViewpointParams view;
       view.eye_height = params.eye_height;

@@ -116,8 +116,8 @@ int main(int argc, char** argv) {
     options.keep_votes = !debug_ply.empty();
     std::vector<ism::Model> loaded;
     for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));
-    for (auto& m : loaded) {
-      if (trust_given_up) m.trustGivenUp();
+    if (trust_given_up) {
+      for (auto& m : loaded) m.trustGivenUp();
     }
     std::vector<const ism::Model*> models;
     for (const auto& m : loaded) models.push_back(&m);

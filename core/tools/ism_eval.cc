@@ -102,6 +102,13 @@ int main(int argc, char** argv) {
   real->add_option("--json", json_path, "also write the results as JSON");
   bool no_up = false;
   real->add_flag("--no-up", no_up, "never pass the scenes' up, as a caller who does not know it");
+  std::vector<float> up_tilt;
+  real->add_option("--up-tilt", up_tilt,
+                   "DEG,AZIMUTH: turn each given up by DEG towards AZIMUTH (deg from the scene's x to its y), "
+                   "to measure how the answers move with it (tests/eval/tilt_spread.py)")
+      ->delimiter(',')
+      ->expected(2)
+      ->check(CLI::Range(-360.0f, 360.0f));
   bool trust_given_up = false;
   real->add_flag("--trust-given-up", trust_given_up,
                  "keep the scenes' up even where their floor is tilted from it (GravityParams::given_up_kept_deg)");
@@ -199,14 +206,18 @@ int main(int argc, char** argv) {
       params.viewpoint = ism::parseViewpointPolicy(viewpoint);
       params.eye_height = eye_height;
       params.give_up = !no_up;
+      if (!up_tilt.empty()) {
+        params.up_tilt_deg = up_tilt[0];
+        params.up_tilt_azimuth_deg = up_tilt[1];
+      }
       params.progress = progress;
       // Every annotation is checked before the long run starts.
       std::vector<ism::AnnotatedScene> scenes;
       for (const auto& path : ism::findSceneAnnotations(inputs)) scenes.push_back(ism::readSceneAnnotation(path));
       std::vector<ism::Model> loaded;
       for (const auto& path : model_paths) loaded.push_back(ism::loadModel(path));
-      for (auto& m : loaded) {
-        if (trust_given_up) m.trustGivenUp();
+      if (trust_given_up) {
+        for (auto& m : loaded) m.trustGivenUp();
       }
       const ism::Model& model = loaded.front();
       for (size_t m = 1; m < loaded.size(); ++m) params.more_models.push_back(&loaded[m]);

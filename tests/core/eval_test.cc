@@ -332,6 +332,25 @@ TEST(EvalGroundTruth, ParsesDatasetJsonAndFindsScenes) {
   EXPECT_THROW(findSceneAnnotations({dir.file("absent.pcd")}), Error);
 }
 
+TEST(EvalReal, TheGivenUpIsTurnedByTheAskedTiltTowardsItsAzimuth) {
+  AnnotatedScene scene;
+  scene.to_gravity = gravityRotation(Eigen::Vector3f(0, -0.8f, -0.6f));
+  const Eigen::Vector3f up = scene.to_gravity.row(2).transpose();
+  RealEvalParams params;
+  EXPECT_EQ(givenUp(scene, params), up);  // no tilt: exactly the annotated up
+  params.up_tilt_deg = 0.2f;
+  for (float azimuth : {0.0f, 90.0f, 225.0f}) {
+    params.up_tilt_azimuth_deg = azimuth;
+    const Eigen::Vector3f tilted = givenUp(scene, params);
+    EXPECT_NEAR(tilted.norm(), 1.0f, 1e-6f);
+    EXPECT_NEAR(std::acos(std::min(1.0f, tilted.dot(up))) * 180.0f / static_cast<float>(M_PI), 0.2f, 0.01f);
+    // It leans towards the azimuth, measured in the gravity frame from x to y.
+    const Eigen::Vector3f lean = scene.to_gravity * (tilted - up);
+    const float radians = azimuth * static_cast<float>(M_PI) / 180.0f;
+    EXPECT_GT(lean.head<2>().normalized().dot(Eigen::Vector2f(std::cos(radians), std::sin(radians))), 0.999f);
+  }
+}
+
 TEST(EvalGroundTruth, MalformedFilesNameTheFileAndField) {
   TempDir dir;
   writeText(dir.file("a.pcd"), "");
