@@ -64,6 +64,7 @@ std::vector<Hypothesis> hypothesesForFeatures(const Model& model, const Features
   options.suppression.shared_surface = recognition.shared_surface;
   options.suppression.merge_support = recognition.merge_support;
   options.suppression.top_support = recognition.top_support;
+  options.peak_centre = recognition.peak_centre;
   options.verification.maps_in_3d = recognition.maps_in_3d;
   options.verification.icp_iterations = recognition.icp_iterations;
   options.verification.fit_terms = recognition.fit_terms;

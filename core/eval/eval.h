@@ -43,6 +43,7 @@ struct EvalRecognition {
   FitTerms fit_terms = FitTerms::kBoth;  // VerificationParams::fit_terms
   bool merge_support = true;   // SuppressionParams::merge_support
   bool top_support = true;     // SuppressionParams::top_support
+  PeakCentre peak_centre = RecognitionOptions{}.peak_centre;
   SceneCheckParams scene_checks;  // RecognitionOptions::scene_checks
 };
 

@@ -330,6 +330,22 @@ Candidate candidateAt(BinKey key, const BinSum& sum) {
   return {key, (Eigen::Vector3d(sum.x, sum.y, sum.z) / sum.weight).cast<float>()};
 }
 
+// The candidate centred at the weighted mean of the votes in its bin and the bins `neighbour` finds
+// (null where they hold none), kept inside its bin [lo, lo + bin_size]: a cube of edge bin_size
+// centred there lies within the 27 bins whose votes findPeaks places again.
+template <typename Neighbour>
+Candidate candidateAround(BinKey key, const BinSum& sum, PeakCentre centre, float bin_size, Neighbour&& neighbour) {
+  Candidate c = candidateAt(key, sum);
+  if (centre == PeakCentre::kBin) return c;
+  BinSum total{};
+  for (size_t i = 0; i < neighbourhood().size(); ++i) {
+    if (const BinSum* n = neighbour(i)) add(total, *n);
+  }
+  const Eigen::Vector3f lo = binOfKey(key).cast<float>() * bin_size;
+  c.center = candidateAt(key, total).center.cwiseMax(lo).cwiseMin(lo + Eigen::Vector3f::Constant(bin_size));
+  return c;
+}
+
 // The threads' candidates in one list, in key order.
 std::vector<Candidate> inKeyOrder(std::vector<std::vector<Candidate>> found) {
   std::vector<Candidate> candidates;
@@ -339,7 +355,7 @@ std::vector<Candidate> inKeyOrder(std::vector<std::vector<Candidate>> found) {
 }
 
 // Local maxima whose 27 bins together could exceed the threshold: the only bins worth scoring.
-std::vector<Candidate> findCandidates(const BinGrid& grid, float threshold) {
+std::vector<Candidate> findCandidates(const BinGrid& grid, float threshold, PeakCentre centre, float bin_size) {
   // Every bin with votes lies at least one bin inside the box, so its neighbours are in it too.
   const std::vector<int32_t>& blocks = grid.allocated();
   return inKeyOrder(perThreadRanges<std::vector<Candidate>>(
@@ -352,14 +368,14 @@ std::vector<Candidate> findCandidates(const BinGrid& grid, float threshold) {
             const auto neighbour = [&](size_t n) { return grid.find(bin + neighbourhood()[n]); };
             const auto lower = [](size_t n) { return n < kCentre; };
             if (isCandidate(bins[place], threshold, neighbour, lower)) {
-              out.push_back(candidateAt(keyOf(grid.first() + bin), bins[place]));
+              out.push_back(candidateAround(keyOf(grid.first() + bin), bins[place], centre, bin_size, neighbour));
             }
           }
         }
       }));
 }
 
-std::vector<Candidate> findCandidates(const BinMap<BinSum>& bins, float threshold) {
+std::vector<Candidate> findCandidates(const BinMap<BinSum>& bins, float threshold, PeakCentre centre, float bin_size) {
   const auto& slots = bins.slots();
   return inKeyOrder(perThreadRanges<std::vector<Candidate>>(
       slots.size(), 4096, [&](std::vector<Candidate>& out, size_t begin, size_t end) {
@@ -369,7 +385,9 @@ std::vector<Candidate> findCandidates(const BinMap<BinSum>& bins, float threshol
           const Eigen::Vector3i bin = binOfKey(slot.key);
           const auto neighbour = [&](size_t i) { return bins.find(keyOf(bin + neighbourhood()[i])); };
           const auto lower = [&](size_t i) { return keyOf(bin + neighbourhood()[i]) < slot.key; };
-          if (isCandidate(slot.value, threshold, neighbour, lower)) out.push_back(candidateAt(slot.key, slot.value));
+          if (isCandidate(slot.value, threshold, neighbour, lower)) {
+            out.push_back(candidateAround(slot.key, slot.value, centre, bin_size, neighbour));
+          }
         }
       }));
 }
@@ -682,13 +700,16 @@ bool HoughSpace::gridded() const { return impl_->grid.has_value(); }
 
 bool HoughSpace::keptVoteBins() const { return !impl_->vote_bins.empty(); }
 
-std::vector<Hypothesis> HoughSpace::findPeaks(float threshold, const ShouldStop& should_stop) const {
+const char* toString(PeakCentre centre) { return centre == PeakCentre::kBin ? "bin" : "neighbourhood"; }
+
+std::vector<Hypothesis> HoughSpace::findPeaks(float threshold, PeakCentre centre, const ShouldStop& should_stop) const {
   const Impl& impl = *impl_;
   LoopStop stop(should_stop);
   const VoteCaster& caster = impl.caster;
   const CategoryModel& category = caster.category();
   const std::vector<Candidate> candidates =
-      impl.grid ? findCandidates(*impl.grid, threshold) : findCandidates(impl.hashed, threshold);
+      impl.grid ? findCandidates(*impl.grid, threshold, centre, category.bin_size)
+                : findCandidates(impl.hashed, threshold, centre, category.bin_size);
   if (candidates.empty()) return {};
 
   // Cast the votes again and look only at those in the bins of a candidate's cube. (Skipping

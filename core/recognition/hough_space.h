@@ -14,6 +14,22 @@
 
 namespace ism {
 
+// Where a peak's cube is centred in its bin, a local maximum of its 26 neighbours.
+enum class PeakCentre {
+  // At the weighted mean of the bin's own votes, as the seed: on an object longer than a bin its
+  // votes run along a ridge of bins, and which bin of the ridge wins and where in it the votes
+  // fell move with any change of the scene far below the sensor's noise.
+  kBin,
+  // At the weighted mean of the votes in the bin and its 26 neighbours, kept inside the bin (so
+  // the cube stays within them): one step of the mean-shift search that ISM places its
+  // hypotheses with (Leibe, Leonardis and Schiele, "Robust object detection with interleaved
+  // categorization and segmentation", IJCV 2008), with a kernel three bins wide, taken from the
+  // bins' sums without casting the votes again. docs/EVALUATION.md, "A peak centred on its 27
+  // bins' votes".
+  kNeighbourhood,
+};
+const char* toString(PeakCentre centre);
+
 // One category's sparse 3D Hough space for one scene. The votes are accumulated bin by bin
 // (weight and weighted position) as they are cast, in parallel over keypoints, and never
 // stored: a room scan casts tens of millions. Results do not depend on thread scheduling; a
@@ -45,12 +61,13 @@ class HoughSpace {
   HoughSpace& operator=(const HoughSpace&) = delete;
 
   // Every bin that is a local maximum of its 26 neighbours (ties: the lower bin coordinates
-  // win), centred at the weighted mean of its votes and scored like scoreAt() there, when the
-  // score exceeds `threshold`; within bin_size of a better one it is dropped. Best first.
+  // win), centred as `centre` says and scored like scoreAt() there, when the score exceeds
+  // `threshold`; within bin_size of a better one it is dropped. Best first.
   // The score and support are found by casting the votes again and keeping only those that land
   // in a bin a peak's cube meets. Each peak's box is fitted and checked (box_selection.h).
   // `should_stop` as for the constructor.
-  std::vector<Hypothesis> findPeaks(float threshold, const ShouldStop& should_stop = {}) const;
+  std::vector<Hypothesis> findPeaks(float threshold, PeakCentre centre = PeakCentre::kBin,
+                                    const ShouldStop& should_stop = {}) const;
 
   const VoteCaster& caster() const;
   size_t votes() const;  // cast into the space

@@ -218,7 +218,8 @@ std::vector<Hypothesis> findAllPeaks(const Member& member, const Features& featu
     times.vote_ms += msSince(start);
     throwIfStopped(options.should_stop, "voting");
     start = std::chrono::steady_clock::now();
-    auto peaks = hough.findPeaks(plan.thresholds[s], options.should_stop);
+    const PeakCentre centre = options.preset == RecognitionPreset::kSeed ? PeakCentre::kBin : options.peak_centre;
+    auto peaks = hough.findPeaks(plan.thresholds[s], centre, options.should_stop);
     const CategoryModel& category = model.categories[static_cast<size_t>(plan.categories[s])];
     for (auto& peak : peaks) {
       peak.confidence = plan.confidence[s](peak);

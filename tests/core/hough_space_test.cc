@@ -63,7 +63,8 @@ TEST(FindPeaks, NoVotesNoHypotheses) {
 // The definition of the peak search, written for clarity: every vote in a std::map of bins,
 // every score by brute force over all votes.
 std::vector<Hypothesis> referencePeaks(const std::vector<Vote>& votes, const Features& features,
-                                       const CategoryModel& category, float threshold) {
+                                       const CategoryModel& category, float threshold,
+                                       PeakCentre centre = PeakCentre::kBin) {
   using Bin = std::tuple<int, int, int>;
   struct Sum {
     double weight = 0;
@@ -81,6 +82,7 @@ std::vector<Hypothesis> referencePeaks(const std::vector<Vote>& votes, const Fea
   for (const auto& [bin, sum] : bins) {
     if (!(sum.weight > 0)) continue;
     double bound = 0;
+    Eigen::Vector3d around = Eigen::Vector3d::Zero();
     bool maximum = true;
     for (int dx = -1; dx <= 1; ++dx)
       for (int dy = -1; dy <= 1; ++dy)
@@ -89,6 +91,7 @@ std::vector<Hypothesis> referencePeaks(const std::vector<Vote>& votes, const Fea
           const auto it = bins.find(n);
           if (it == bins.end()) continue;
           bound += it->second.weight;
+          around += it->second.weighted;
           if (it->second.weight > sum.weight || (it->second.weight == sum.weight && n < bin)) maximum = false;
         }
     if (!maximum || !(bound > threshold)) continue;
@@ -96,6 +99,12 @@ std::vector<Hypothesis> referencePeaks(const std::vector<Vote>& votes, const Fea
     h.category = category.name;
     h.threshold = threshold;
     h.center = (sum.weighted / sum.weight).cast<float>();
+    if (centre == PeakCentre::kNeighbourhood) {
+      // The 27 bins' mean, clamped into the bin itself.
+      const Eigen::Vector3f lo = Eigen::Vector3f(std::get<0>(bin), std::get<1>(bin), std::get<2>(bin)) * s;
+      const Eigen::Vector3f mean = (around / bound).cast<float>();
+      for (int a = 0; a < 3; ++a) h.center[a] = std::clamp(mean[a], lo[a], lo[a] + s);
+    }
     h.score = scoreAt(votes, h.center, s);
     if (!(h.score > threshold)) continue;
     std::vector<int> support;
@@ -171,40 +180,42 @@ TEST(FindPeaks, MatchesTheReferenceOnRandomData) {
   const CategoryModel& category = m.categories[0];
   for (auto [weighting, threshold] : kRandomSceneThresholds) {
     for (const BinStorage& storage : kBinStorages) {
-      SCOPED_TRACE(std::string(toString(weighting)) + " " + storage.name);
-      const size_t max_grid_bins = storage.max_grid_bins;
-      const Strategy st = strategy(weighting);
-      const auto votes = castVotes(m, 0, scene.features, scene.activations, st);
-      const auto expected = referencePeaks(votes, scene.features, category, threshold);
-      const HoughSpace hough(m, 0, scene.features, scene.activations, st, max_grid_bins, storage.max_kept_vote_bins);
-      EXPECT_EQ(hough.gridded(), max_grid_bins > 0);
-      EXPECT_EQ(hough.keptVoteBins(), storage.max_kept_vote_bins > 0);
-      EXPECT_EQ(hough.votes(), votes.size());
-      const auto actual = hough.findPeaks(threshold);
-      ASSERT_GE(expected.size(), 10u);  // the objects and clutter maxima
-      ASSERT_EQ(actual.size(), expected.size());
-      for (size_t i = 0; i < expected.size(); ++i) {
-        SCOPED_TRACE(i);
-        // Matched by centre, not by rank: two peaks whose scores differ only in the last bits
-        // (the reference sums its votes in another order) may swap places.
-        size_t match = 0;
-        for (size_t j = 1; j < actual.size(); ++j) {
-          if ((actual[j].center - expected[i].center).norm() < (actual[match].center - expected[i].center).norm()) match = j;
+      for (PeakCentre centre : {PeakCentre::kBin, PeakCentre::kNeighbourhood}) {
+        SCOPED_TRACE(std::string(toString(weighting)) + " " + storage.name + " " + toString(centre));
+        const size_t max_grid_bins = storage.max_grid_bins;
+        const Strategy st = strategy(weighting);
+        const auto votes = castVotes(m, 0, scene.features, scene.activations, st);
+        const auto expected = referencePeaks(votes, scene.features, category, threshold, centre);
+        const HoughSpace hough(m, 0, scene.features, scene.activations, st, max_grid_bins, storage.max_kept_vote_bins);
+        EXPECT_EQ(hough.gridded(), max_grid_bins > 0);
+        EXPECT_EQ(hough.keptVoteBins(), storage.max_kept_vote_bins > 0);
+        EXPECT_EQ(hough.votes(), votes.size());
+        const auto actual = hough.findPeaks(threshold, centre);
+        ASSERT_GE(expected.size(), 10u);  // the objects and clutter maxima
+        ASSERT_EQ(actual.size(), expected.size());
+        for (size_t i = 0; i < expected.size(); ++i) {
+          SCOPED_TRACE(i);
+          // Matched by centre, not by rank: two peaks whose scores differ only in the last bits
+          // (the reference sums its votes in another order) may swap places.
+          size_t match = 0;
+          for (size_t j = 1; j < actual.size(); ++j) {
+            if ((actual[j].center - expected[i].center).norm() < (actual[match].center - expected[i].center).norm()) match = j;
+          }
+          const Hypothesis& a = actual[match];
+          EXPECT_LT((a.center - expected[i].center).norm(), 1e-5f);
+          EXPECT_NEAR(a.score, expected[i].score, 1e-5f * expected[i].score);
+          EXPECT_EQ(a.support_keypoints, expected[i].support_keypoints);
+          EXPECT_EQ(a.support, expected[i].support);
+          EXPECT_EQ(a.category, category.name);
         }
-        const Hypothesis& a = actual[match];
-        EXPECT_LT((a.center - expected[i].center).norm(), 1e-5f);
-        EXPECT_NEAR(a.score, expected[i].score, 1e-5f * expected[i].score);
-        EXPECT_EQ(a.support_keypoints, expected[i].support_keypoints);
-        EXPECT_EQ(a.support, expected[i].support);
-        EXPECT_EQ(a.category, category.name);
-      }
-      // Same input, same answer: thread scheduling must not leak into the sums.
-      const auto again = HoughSpace(m, 0, scene.features, scene.activations, st, max_grid_bins,
-                                    storage.max_kept_vote_bins).findPeaks(threshold);
-      ASSERT_EQ(again.size(), actual.size());
-      for (size_t i = 0; i < again.size(); ++i) {
-        EXPECT_EQ(again[i].score, actual[i].score);
-        EXPECT_EQ(again[i].center, actual[i].center);
+        // Same input, same answer: thread scheduling must not leak into the sums.
+        const auto again = HoughSpace(m, 0, scene.features, scene.activations, st, max_grid_bins,
+                                      storage.max_kept_vote_bins).findPeaks(threshold, centre);
+        ASSERT_EQ(again.size(), actual.size());
+        for (size_t i = 0; i < again.size(); ++i) {
+          EXPECT_EQ(again[i].score, actual[i].score);
+          EXPECT_EQ(again[i].center, actual[i].center);
+        }
       }
     }
   }
