@@ -15,23 +15,28 @@ def classes(path):
 CLASSES = ("chair", "table|desk", "sofa")
 
 
+def map25(cs):
+    """The mean AP@0.25 over CLASSES that have objects (None: none has)."""
+    aps = [cs[c]["ap25"] for c in CLASSES if cs[c]["objects"] > 0 and cs[c]["ap25"] is not None]
+    return sum(aps) / len(aps) if aps else None
+
+
+def fp_per_scan(cs):
+    """False answers of CLASSES per scan."""
+    return sum(cs[c]["fp"] for c in CLASSES) / max(c["scenes"] for c in cs.values())
+
+
 def figures(prefix):
     """mAP@0.25 of the frames and of the clouds, the clouds' chair / table / sofa AP@0.25, chair r and
     false positives per scan at 0.5 (fractions), all over CLASSES."""
     everything = classes(f"{prefix}.all.json")
     org, unorg = classes(f"{prefix}.organized.json"), classes(f"{prefix}.unorganized.json")
-
-    def map25(cs):
-        aps = [cs[c]["ap25"] for c in CLASSES if cs[c]["objects"] > 0 and cs[c]["ap25"] is not None]
-        return sum(aps) / len(aps) if aps else None
-
-    scenes = max(c["scenes"] for c in everything.values())
     return {
         "frames": map25(org),
         "clouds": map25(unorg),
         "per_class": [unorg[c]["ap25"] for c in CLASSES],
         "chair_r": everything["chair"]["rate"],
-        "fp_per_scan": sum(everything[c]["fp"] for c in CLASSES) / scenes,
+        "fp_per_scan": fp_per_scan(everything),
     }
 
 

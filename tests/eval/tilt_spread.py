@@ -14,15 +14,16 @@ The Kinect frames and the sample scene are sent no up and answer the same in eve
 """
 import argparse
 import concurrent.futures
-import json
 import os
 import subprocess
 import sys
 import tempfile
 
+from real_row import CLASSES, classes, fp_per_scan, map25
+
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 REAL = os.path.join(ROOT, "..", "shared", "data", "real")
-CLASSES = (("chair", "chairs"), ("table|desk", "tables"), ("sofa", "sofas"))
+LABELS = {"chair": "chairs", "table|desk": "tables", "sofa": "sofas"}
 # (degrees, azimuth in degrees): the exact up, four tilts far below a sensor's noise, four of a
 # robot's levelling error.
 TILTS = ((0, 0), (0.05, 0), (0.05, 90), (0.05, 180), (0.05, 270), (1, 45), (1, 135), (1, 225), (1, 315))
@@ -44,22 +45,16 @@ def run(binary, models, extra, min_confidence, out, tilt):
 
 
 def figures(path):
-    combination = json.load(open(path))["combinations"][0]
-    classes = {c["class"]: c for c in combination["classes"]}
-    scenes = max(c["scenes"] for c in classes.values())
-    row = {}
-    for name, _ in CLASSES:
-        c = classes[name]
-        row[name] = (c["rate"], c["tp"], c["fp"], c["ap25"])
-    aps = [classes[n]["ap25"] for n, _ in CLASSES if classes[n]["objects"] > 0 and classes[n]["ap25"] is not None]
-    row["map"] = sum(aps) / len(aps)
-    row["fp_per_scan"] = sum(classes[n]["fp"] for n, _ in CLASSES) / scenes
+    cs = classes(path)
+    row = {name: (cs[name]["rate"], cs[name]["tp"], cs[name]["fp"], cs[name]["ap25"]) for name in CLASSES}
+    row["map"] = map25(cs)
+    row["fp_per_scan"] = fp_per_scan(cs)
     return row
 
 
 def line(label, row):
     cells = [label]
-    for name, _ in CLASSES:
+    for name in CLASSES:
         rate, tp, fp, _ = row[name]
         cells.append(f"{100 * rate:.1f} ({tp:.3g}, {fp:.3g})")
     cells.append(f"{100 * row['map']:.1f}")
@@ -83,21 +78,21 @@ def main():
     with concurrent.futures.ThreadPoolExecutor(args.jobs) as pool:
         rows = list(pool.map(lambda t: run(args.bin, args.model, args.extra, args.min_confidence, out, t), TILTS))
 
-    print("| up (tilt deg, azimuth deg) | " + " | ".join(f"{label} r (TP, FP)" for _, label in CLASSES) +
+    print("| up (tilt deg, azimuth deg) | " + " | ".join(f"{LABELS[name]} r (TP, FP)" for name in CLASSES) +
           " | mAP@0.25 | false answers per scan |")
     print("|---" * (len(CLASSES) + 3) + "|")
     for tilt, row in zip(TILTS, rows):
         print(line("exact" if tilt[0] == 0 else f"{tilt[0]:g}, {tilt[1]:g}", row))
     mean = {}
-    for name, _ in CLASSES:
+    for name in CLASSES:
         mean[name] = tuple(sum(r[name][i] for r in rows) / len(rows) if rows[0][name][i] is not None else None
                            for i in range(4))
     mean["map"] = sum(r["map"] for r in rows) / len(rows)
     mean["fp_per_scan"] = sum(r["fp_per_scan"] for r in rows) / len(rows)
     print(line(f"**mean of {len(rows)}**", mean))
-    low = {name: min(r[name][0] for r in rows) for name, _ in CLASSES}
-    high = {name: max(r[name][0] for r in rows) for name, _ in CLASSES}
-    print("range of r: " + ", ".join(f"{label} {100 * low[n]:.1f}-{100 * high[n]:.1f}" for n, label in CLASSES) +
+    low = {name: min(r[name][0] for r in rows) for name in CLASSES}
+    high = {name: max(r[name][0] for r in rows) for name in CLASSES}
+    print("range of r: " + ", ".join(f"{LABELS[n]} {100 * low[n]:.1f}-{100 * high[n]:.1f}" for n in CLASSES) +
           f"; mAP {100 * min(r['map'] for r in rows):.1f}-{100 * max(r['map'] for r in rows):.1f}")
 
 
