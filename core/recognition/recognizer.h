@@ -55,10 +55,9 @@ struct RecognitionOptions {
   // peak above the threshold (calibration labels them one by one).
   bool one_answer_per_object = true;
   // Default preset: where a peak is centred in its bin (hough_space.h); the seed preset centres
-  // it on its bin's own votes. Its 27 bins' votes raise the chairs' and tables' r over draws of
-  // the scene but cost sofas' AP and add false answers: optional (docs/EVALUATION.md, "A peak
-  // centred on its 27 bins' votes").
-  PeakCentre peak_centre = PeakCentre::kBin;
+  // it on its bin's own votes. Training's calibration rooms centre their peaks with this default,
+  // so that the confidence is learned on the peaks recognition finds.
+  PeakCentre peak_centre = PeakCentre::kNeighbourhood;
   SuppressionParams suppression;
   // Default preset: check each hypothesis against the scene's depth with the category's training
   // shapes (verification.h), where the model keeps them; the fit enters the confidence and the

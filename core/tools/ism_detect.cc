@@ -71,10 +71,10 @@ int main(int argc, char** argv) {
   app.add_flag("--no-box-selection", no_box_selection, "keep hypotheses whose box fails the learned limits");
   bool no_verify = false;
   app.add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified against the scene");
-  bool neighbourhood_peaks = false;
-  app.add_flag("--neighbourhood-peaks", neighbourhood_peaks,
-               "default preset: centre each peak on the votes of its bin and its 26 neighbours, not on its own bin's "
-               "(hough_space.h)");
+  bool bin_peaks = false;
+  app.add_flag("--bin-peaks", bin_peaks,
+               "default preset: centre each peak on its own bin's votes, as the seed, not on its bin's and its 26 "
+               "neighbours' (hough_space.h)");
   app.add_option("--icp", options.verification.icp_iterations,
                  "default preset: steps of ICP (a turn about up and a shift along the floor) after verification's pose "
                  "search; 0 keeps the search's pose")
@@ -116,7 +116,7 @@ int main(int argc, char** argv) {
     }
     options.box_selection = !no_box_selection;
     options.verify = !no_verify;
-    if (neighbourhood_peaks) options.peak_centre = ism::PeakCentre::kNeighbourhood;
+    if (bin_peaks) options.peak_centre = ism::PeakCentre::kBin;
     scene_check_flags.apply(options.scene_checks);
     options.keep_votes = !debug_ply.empty();
     std::vector<ism::Model> loaded;

@@ -152,11 +152,11 @@ int main(int argc, char** argv) {
   for (CLI::App* sub : {baseline, real}) scene_check_flags.add(*sub);
   std::string preset = "default";
   float min_confidence = ism::RecognitionOptions{}.min_confidence;
-  bool neighbourhood_peaks = false;
+  bool bin_peaks = false;
   for (CLI::App* sub : {baseline, real}) {
-    sub->add_flag("--neighbourhood-peaks", neighbourhood_peaks,
-                  "default preset: centre each peak on the votes of its bin and its 26 neighbours, not on its own bin's "
-                  "(hough_space.h)");
+    sub->add_flag("--bin-peaks", bin_peaks,
+                  "default preset: centre each peak on its own bin's votes, as the seed, not on its bin's and its 26 "
+                  "neighbours' (hough_space.h)");
     sub->add_option("--preset", preset, "default | seed: the recognition pipeline evaluated")
         ->check(CLI::IsMember({"default", "seed"}))
         ->capture_default_str();
@@ -179,7 +179,7 @@ int main(int argc, char** argv) {
     recognition.preset = ism::parseRecognitionPreset(preset);
     recognition.min_confidence = min_confidence;
     recognition.verify = !no_verify;
-    if (neighbourhood_peaks) recognition.peak_centre = ism::PeakCentre::kNeighbourhood;
+    if (bin_peaks) recognition.peak_centre = ism::PeakCentre::kBin;
     recognition.shared_surface = !centre_suppression;
     recognition.maps_in_3d = map_verification == "3d";
     recognition.icp_iterations = icp_iterations;

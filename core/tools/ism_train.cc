@@ -132,6 +132,10 @@ int main(int argc, char** argv) {
                "confidence (discriminative_weights.h), as the shipped model is trained: more true chairs at the "
                "default operating point on the dev scans, tables and sofas ranked a little worse below it; "
                "training takes about twice as long (docs/EVALUATION.md)");
+  bool bin_peaks = false;
+  app.add_flag("--bin-peaks", bin_peaks,
+               "centre the rendered rooms' peaks on their own bin's votes, as the seed, not on their bin's and its 26 "
+               "neighbours': for recognition with --bin-peaks (hough_space.h)");
   bool kind_negatives = false;
   app.add_flag("--calibration-kind-negatives", kind_negatives,
                "count a rendered room's peak on an object of another category of its kind (a dining chair's on an "
@@ -234,6 +238,7 @@ int main(int argc, char** argv) {
   if (no_shape_profile) params.calibration.shape_profile = false;
   if (no_calibration_checks) params.calibration.scene_checks = false;
   if (kind_negatives) params.calibration.kinds = false;
+  if (bin_peaks) params.calibration.peak_centre = ism::PeakCentre::kBin;
   if (no_shadow) params.noise.projector_shadow = false;
   if (params.voting.frame == ism::VoteFrame::kUpright && !params.front_end.gravity.enabled) {
     std::cerr << "ism-train: upright vote frames need the gravity stage (drop --no-gravity or use --vote-frame lrf)\n";

@@ -391,6 +391,7 @@ std::vector<CalibrationSample> calibrationSamples(const Model& model, const std:
     options.strategy = strategy;
     options.min_confidence = 0;
     options.one_answer_per_object = false;
+    options.peak_centre = cp.peak_centre;
     VerificationParams verification;
     verification.fit_terms = cp.fit_terms;
     parallelFor(cp.rooms_per_fold, trainingThreads(params.threads), [&](int r) {

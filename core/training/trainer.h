@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/model/model.h"
+#include "core/recognition/hough_space.h"
 #include "core/recognition/scene_checks.h"
 #include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
@@ -71,6 +72,9 @@ struct CalibrationParams {
   // verification's shape profile distance (verification.h, ShapeProfile) besides the fit; false
   // fits it without (ism-train --no-shape-profile).
   bool shape_profile = true;
+  // Where the rooms' peaks are centred (hough_space.h), as recognition's default centres them;
+  // recognition is to use the same (ism-train, ism-detect and ism-eval --bin-peaks: kBin).
+  PeakCentre peak_centre = PeakCentre::kNeighbourhood;
   // The terms of verification's fit the rooms' peaks are verified with (ism-train --fit-terms);
   // recognition is to use the same.
   FitTerms fit_terms = FitTerms::kBoth;

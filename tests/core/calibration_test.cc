@@ -11,6 +11,7 @@
 
 #include "core/common/error.h"
 #include "core/gravity/viewpoint.h"
+#include "core/recognition/recognizer.h"
 #include "tests/common/synthetic_furniture.h"
 
 namespace ism {
@@ -62,6 +63,13 @@ bool holdsBed(const CalibrationRoom& room) {
     }
   }
   return false;
+}
+
+// The confidence is learned on the rooms' peaks as recognition finds them: a peak centred on its
+// 27 bins' votes scores higher than one centred on its bin's, the false ones too.
+TEST(CalibrationParams, CentresTheRoomsPeaksAsRecognitionDoes) {
+  EXPECT_EQ(CalibrationParams{}.peak_centre, RecognitionOptions{}.peak_centre);
+  EXPECT_EQ(CalibrationParams{}.peak_centre, PeakCentre::kNeighbourhood);
 }
 
 TEST(CategoryKind, IsTheLastWordOfTheName) {

@@ -250,14 +250,14 @@ TEST_F(Tools, EverySceneCheckSwitchTurnsOffItsCheckInEveryTool) {
 // of the object's longest edge of its centre). The chair's back hides part of the table's top and
 // most of the table's keypoints vote from one end, so the table's answer is placed right only when
 // it is supported by the keypoints that voted for its box's centre, not its peaks'. The same holds
-// with the peaks centred on their 27 bins' votes (--neighbourhood-peaks), which places them
+// with the peaks centred on their own bin's votes (--bin-peaks, the seed's), which places them
 // elsewhere.
 TEST_F(Tools, DetectAnswersTheSampleSceneObjectByObject) {
   const std::string sample = std::string(ISM_SOURCE_DIR) + "/models/sample/living_room";
   const auto objects = nlohmann::json::parse(ism::readFileBytes(sample + ".json"))["objects"];
   ASSERT_EQ(objects.size(), 3u);
   std::vector<nlohmann::json> runs;
-  for (const std::vector<std::string>& extra : {std::vector<std::string>{}, {"--neighbourhood-peaks"}}) {
+  for (const std::vector<std::string>& extra : {std::vector<std::string>{}, {"--bin-peaks"}}) {
     SCOPED_TRACE(extra.empty() ? "default" : extra[0]);
     std::vector<std::string> args = {"-m", kModel, "--json", sample + ".pcd"};
     args.insert(args.end(), extra.begin(), extra.end());
@@ -283,7 +283,7 @@ TEST_F(Tools, DetectAnswersTheSampleSceneObjectByObject) {
   ASSERT_EQ(runs.size(), 2u);
   bool moved = false;
   for (size_t i = 0; i < runs[0].size() && i < runs[1].size(); ++i) moved |= runs[0][i]["score"] != runs[1][i]["score"];
-  EXPECT_TRUE(moved) << "--neighbourhood-peaks changed no peak's score";
+  EXPECT_TRUE(moved) << "--bin-peaks changed no peak's score";
 }
 
 // What supports a table's answer does not hang on the operating point: on tum_desk the desk's

@@ -34,7 +34,8 @@ mkdir -p "$work"
 # little measured at seat height, rows before the upper part's clearance count a wall's face at a
 # chair's or couch's edge in the top of its body, rows before the seen-through top keep chairs
 # whose fitted backrest the sensor sees through, and rows before the given up's check keep the
-# scenes' up however far their floor is tilted from it.
+# scenes' up however far their floor is tilted from it. Rows before the peaks' neighbourhood
+# centre their peaks on their bin's own votes, in training's calibration rooms and in recognition.
 contours="--surface-keypoints 0 --height-weighting lost --no-shape-profile --no-calibration-scene-checks"
 near="$contours --view-distance 0"
 old="$near --seed-front-end --no-projector-shadow --no-cloud-calibration --no-verification"
@@ -83,8 +84,9 @@ steps=(
   "near-side|=learned-weights|--preset default --no-closed-front --no-upper-clearance --no-seen-top --trust-given-up|+ chairs and couches of a single view with measured surface standing over the side of their footprint facing the sensor, a wall between it and them, dropped"
   "closed-front|=learned-weights|--preset default --no-upper-clearance --no-seen-top --trust-given-up|+ in a single view, a table's measured points under its top less than 0.3 m in from the side facing the sensor (a dresser's drawers) do not open it"
   "upper-clearance|=learned-weights|--preset default --no-seen-top --trust-given-up|+ the points in the top of a chair's or couch's body count only more than 0.2 m from surface standing over its top, a wall at its edge"
-  "seen-top|=learned-weights|--preset default --trust-given-up|+ chairs and couches of a single view whose fitted shape's top quarter, a backrest, has under 1 in 20 of its seen pixels explained, dropped (the default)"
-  "given-up-check|=learned-weights|--preset default|+ a given up more than 3 deg from the normal of a floor that holds more points than the plane square to it gives way to that normal (the default)"
+  "seen-top|=learned-weights|--preset default --trust-given-up|+ chairs and couches of a single view whose fitted shape's top quarter, a backrest, has under 1 in 20 of its seen pixels explained, dropped"
+  "given-up-check|=learned-weights|--preset default|+ a given up more than 3 deg from the normal of a floor that holds more points than the plane square to it gives way to that normal"
+  "peaks|--draws 2 --codebook-sampling balanced --wall-seen-through 1 --learned-weights|--preset default|+ each peak centred on the votes of its bin and its 26 neighbours, not its bin's alone, in recognition and in the calibration rooms (the default)"
   "no-free-space|--fit-terms inliers|--preset default --fit-terms inliers --no-seat-under-top --no-top-height --no-level-run-on --no-behind-back --no-near-side --no-closed-front --no-upper-clearance --no-seen-top --trust-given-up|one draw without verification's free-space term: a shape's pixels the sensor saw through count as hidden ones do, against it (optional: ism-train and ism-eval --fit-terms inliers)"
   "no-inliers|--fit-terms free-space|--preset default --fit-terms free-space --no-seat-under-top --no-top-height --no-level-run-on --no-behind-back --no-near-side --no-closed-front --no-upper-clearance --no-seen-top --trust-given-up|one draw without verification's inlier term: only the pixels the sensor saw through count, against the shape (optional: --fit-terms free-space)"
   "icp|=checked-calibration|--preset default --icp 8 --no-seat-under-top --no-top-height --no-level-run-on --no-behind-back --no-near-side --no-closed-front --no-upper-clearance --no-seen-top --trust-given-up|one draw with up to 8 steps of ICP about up after verification's pose search (optional: ism-detect and ism-eval --icp 8)"
@@ -104,7 +106,13 @@ for step in "${steps[@]}"; do
   # A calibration room's peak on another category of its kind counts against it in the rows before
   # the kinds' and in the single-draw rows made before it; the kinds' row and those that build on it
   # (walls, learned weights, the rooms seen as maps) leave it out, as the default does.
-  [[ $name == kinds || $name == walls || $name == learned-weights || $name == calibration-maps || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
+  [[ $name == kinds || $name == walls || $name == learned-weights || $name == calibration-maps || $name == peaks || $train_args == =* ]] || train_args+=" --calibration-kind-negatives"
+  # Every row before the peaks' neighbourhood, and the single-draw rows made before it, centre
+  # their peaks on their bin, in the calibration rooms and in recognition.
+  if [[ $name != peaks ]]; then
+    [[ $train_args == =* ]] || train_args+=" --bin-peaks"
+    eval_args+=" --bin-peaks"
+  fi
   if ((${#only[@]})) && [[ " ${only[*]} " != *" $name "* ]]; then
     [[ -f $work/$name.seconds ]] || { echo "ablation: $name has no earlier run in $work; name it" >&2; exit 1; }
     rows+=("$name|$what|$(cat "$work/$name.seconds")")
