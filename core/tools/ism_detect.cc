@@ -72,9 +72,7 @@ int main(int argc, char** argv) {
   bool no_verify = false;
   app.add_flag("--no-verify", no_verify, "default preset: leave the hypotheses unverified against the scene");
   bool bin_peaks = false;
-  app.add_flag("--bin-peaks", bin_peaks,
-               "default preset: centre each peak on its own bin's votes, as the seed, not on its bin's and its 26 "
-               "neighbours' (hough_space.h)");
+  app.add_flag("--bin-peaks", bin_peaks, ism::cli::kBinPeaksHelp);
   app.add_option("--icp", options.verification.icp_iterations,
                  "default preset: steps of ICP (a turn about up and a shift along the floor) after verification's pose "
                  "search; 0 keeps the search's pose")

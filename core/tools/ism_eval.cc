@@ -154,9 +154,7 @@ int main(int argc, char** argv) {
   float min_confidence = ism::RecognitionOptions{}.min_confidence;
   bool bin_peaks = false;
   for (CLI::App* sub : {baseline, real}) {
-    sub->add_flag("--bin-peaks", bin_peaks,
-                  "default preset: centre each peak on its own bin's votes, as the seed, not on its bin's and its 26 "
-                  "neighbours' (hough_space.h)");
+    sub->add_flag("--bin-peaks", bin_peaks, ism::cli::kBinPeaksHelp);
     sub->add_option("--preset", preset, "default | seed: the recognition pipeline evaluated")
         ->check(CLI::IsMember({"default", "seed"}))
         ->capture_default_str();

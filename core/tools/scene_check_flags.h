@@ -10,6 +10,11 @@
 
 namespace ism::cli {
 
+// --bin-peaks, registered by ism-detect and both of ism-eval's subcommands.
+inline constexpr const char* kBinPeaksHelp =
+    "default preset: centre each peak on its own bin's votes, as the seed, not on its bin's and its 26 "
+    "neighbours' (hough_space.h)";
+
 struct SceneCheckSwitch {
   const char* flag;
   const char* help;

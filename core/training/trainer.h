@@ -9,6 +9,7 @@
 
 #include "core/model/model.h"
 #include "core/recognition/hough_space.h"
+#include "core/recognition/recognizer.h"
 #include "core/recognition/scene_checks.h"
 #include "core/recognition/verification.h"
 #include "core/scanner/scanner.h"
@@ -72,12 +73,13 @@ struct CalibrationParams {
   // verification's shape profile distance (verification.h, ShapeProfile) besides the fit; false
   // fits it without (ism-train --no-shape-profile).
   bool shape_profile = true;
-  // Where the rooms' peaks are centred (hough_space.h), as recognition's default centres them;
-  // recognition is to use the same (ism-train, ism-detect and ism-eval --bin-peaks: kBin).
-  PeakCentre peak_centre = PeakCentre::kNeighbourhood;
-  // The terms of verification's fit the rooms' peaks are verified with (ism-train --fit-terms);
-  // recognition is to use the same.
-  FitTerms fit_terms = FitTerms::kBoth;
+  // Where the rooms' peaks are centred (hough_space.h): as recognition's default centres them, so
+  // that the confidence is learned on the peaks recognition finds; recognition is to use the same
+  // (ism-train, ism-detect and ism-eval --bin-peaks: kBin).
+  PeakCentre peak_centre = RecognitionOptions{}.peak_centre;
+  // The terms of verification's fit the rooms' peaks are verified with (ism-train --fit-terms):
+  // recognition's default ones; recognition is to use the same.
+  FitTerms fit_terms = RecognitionOptions{}.verification.fit_terms;
   // Whether the rooms' verified peaks go through recognition's checks of the scene around them
   // (scene_checks.h) before they are labelled, so that the confidence is the chance that a peak
   // which passed them is right, as the ones recognition answers have; false labels every verified

@@ -67,9 +67,9 @@ bool holdsBed(const CalibrationRoom& room) {
 
 // The confidence is learned on the rooms' peaks as recognition finds them: a peak centred on its
 // 27 bins' votes scores higher than one centred on its bin's, the false ones too.
-TEST(CalibrationParams, CentresTheRoomsPeaksAsRecognitionDoes) {
-  EXPECT_EQ(CalibrationParams{}.peak_centre, RecognitionOptions{}.peak_centre);
+TEST(CalibrationParams, CentresTheRoomsPeaksOnTheirNeighbourhood) {
   EXPECT_EQ(CalibrationParams{}.peak_centre, PeakCentre::kNeighbourhood);
+  EXPECT_EQ(CalibrationParams{}.fit_terms, FitTerms::kBoth);
 }
 
 TEST(CategoryKind, IsTheLastWordOfTheName) {
