@@ -1,7 +1,8 @@
 #pragma once
 // The command-line switches that turn the default preset's scene checks off (scene_checks.h), in
 // one table that ism-detect and both of ism-eval's subcommands register: each check is named,
-// described and switched off in one place, so the tools cannot drift apart.
+// described and switched off in one place, so the tools cannot drift apart. The help of the other
+// default-preset switch they share, --bin-peaks, is here for the same reason.
 #include <CLI/CLI.hpp>
 #include <array>
 #include <cstddef>
